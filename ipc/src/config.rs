@@ -1,0 +1,133 @@
+//! One TOML file configures the whole stack; each process reads its own sections from it.
+//! Every key has a default, so no file at all is a valid configuration. Unknown keys are errors
+//! (a typo must not silently fall back to a default); errors name the file, section and key.
+
+use std::path::{Path, PathBuf};
+
+use serde::de::DeserializeOwned;
+
+/// Why a configuration could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML.
+    #[error("config file {path} is not valid TOML: {message}")]
+    Parse { path: PathBuf, message: String },
+    /// A section has a wrong, unknown or badly typed key.
+    #[error("config file {path}, section [{section}]: {message}")]
+    Section {
+        path: PathBuf,
+        section: String,
+        message: String,
+    },
+    /// A value is out of range (checked after parsing).
+    #[error("config file {path}: {key} {message}")]
+    Invalid {
+        path: PathBuf,
+        key: String,
+        message: String,
+    },
+}
+
+/// A parsed config file (or the empty one when no file was given).
+#[derive(Debug, Clone, Default)]
+pub struct ConfigFile {
+    path: Option<PathBuf>,
+    table: toml::Table,
+}
+
+impl ConfigFile {
+    pub fn load(path: Option<&Path>) -> Result<Self, ConfigError> {
+        let Some(path) = path else {
+            return Ok(Self::default());
+        };
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.into(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let table = text
+            .parse::<toml::Table>()
+            .map_err(|e| ConfigError::Parse {
+                path: path.into(),
+                message: e.to_string(),
+            })?;
+        Ok(Self {
+            path: Some(path.into()),
+            table,
+        })
+    }
+
+    /// The file's path for messages ("<defaults>" without a file).
+    pub fn origin(&self) -> PathBuf {
+        self.path
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("<defaults>"))
+    }
+
+    /// Section `name` (dotted for nested tables, e.g. "simulator.teacher"), defaults where absent.
+    pub fn section<T: DeserializeOwned + Default>(&self, name: &str) -> Result<T, ConfigError> {
+        let mut value = Some(&self.table);
+        for part in name.split('.') {
+            value = value.and_then(|t| t.get(part)).and_then(|v| v.as_table());
+        }
+        let Some(table) = value else {
+            return Ok(T::default());
+        };
+        T::deserialize(toml::Value::Table(table.clone())).map_err(|e| ConfigError::Section {
+            path: self.origin(),
+            section: name.into(),
+            message: e.to_string().trim().to_string(),
+        })
+    }
+
+    /// An [`ConfigError::Invalid`] for a value that parsed but makes no sense.
+    pub fn invalid(&self, key: &str, message: impl Into<String>) -> ConfigError {
+        ConfigError::Invalid {
+            path: self.origin(),
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::node::IpcConfig;
+
+    #[test]
+    fn missing_section_gives_defaults() {
+        let f = ConfigFile::parse("[other]\nx = 1\n", Path::new("a.toml")).unwrap();
+        assert_eq!(f.section::<IpcConfig>("ipc").unwrap(), IpcConfig::default());
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_file_and_section() {
+        let f = ConfigFile::parse("[ipc]\nnamespce = \"x\"\n", Path::new("stack.toml")).unwrap();
+        let msg = f.section::<IpcConfig>("ipc").unwrap_err().to_string();
+        assert!(
+            msg.contains("stack.toml") && msg.contains("[ipc]") && msg.contains("namespce"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn bad_toml_is_reported() {
+        let msg = ConfigFile::parse("[ipc\n", Path::new("b.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("b.toml") && msg.contains("not valid TOML"),
+            "{msg}"
+        );
+    }
+}

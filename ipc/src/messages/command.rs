@@ -1,0 +1,48 @@
+use bytemuck::Zeroable;
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::ACTION_DIM;
+
+/// The wheel command answering one observation.
+#[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
+#[type_name("mtanet::Command/v1")]
+#[repr(C)]
+pub struct Command {
+    /// `CLOCK_MONOTONIC` ns when published.
+    pub stamp_ns: u64,
+    /// The observation step this command answers; the simulator drops commands for other steps.
+    pub step: u64,
+    /// The answered observation's `stamp_ns`, echoed so the simulator measures the round trip.
+    pub obs_stamp_ns: u64,
+    /// Version of the weights that produced it (0: none loaded yet).
+    pub model_version: u64,
+    /// Wheel velocities (rad/s, left/right).
+    pub wheel_velocity: [f32; ACTION_DIM],
+    /// A [`CommandSource`] as u32.
+    pub source: u32,
+    /// Predictor's own compute time for this step in ns (saturating).
+    pub compute_ns: u32,
+}
+
+/// Who decided a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum CommandSource {
+    /// A fixed reactive rule on the line sensors (no model yet).
+    Reactive = 0,
+    /// The simulator's teacher driver.
+    Teacher = 1,
+    /// Active inference through the world model.
+    ActiveInference = 2,
+}
+
+impl CommandSource {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        match v {
+            0 => Some(Self::Reactive),
+            1 => Some(Self::Teacher),
+            2 => Some(Self::ActiveInference),
+            _ => None,
+        }
+    }
+}

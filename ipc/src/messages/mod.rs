@@ -1,0 +1,14 @@
+//! The messages that cross shared memory, one type per file.
+
+mod command;
+mod observation;
+mod replay;
+mod weights;
+
+pub use command::{Command, CommandSource};
+pub use observation::{GroundTruth, Observation};
+pub use replay::ReplayChunk;
+pub use weights::WeightsHeader;
+
+#[cfg(test)]
+mod tests;

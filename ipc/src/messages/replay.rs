@@ -1,0 +1,25 @@
+use bytemuck::Zeroable;
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::{ACTION_DIM, IMAGE_PIXELS, REPLAY_STEPS};
+
+/// `REPLAY_STEPS` consecutive steps for the trainer: one training sequence, in the dataset
+/// convention of the project (`actions[t]` is what moved the world from frame t-1 to frame t).
+/// ~7.9 KB, written in place in shared memory by the simulator.
+#[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
+#[type_name("mtanet::ReplayChunk/v1")]
+#[repr(C)]
+pub struct ReplayChunk {
+    /// `CLOCK_MONOTONIC` ns when published.
+    pub stamp_ns: u64,
+    /// Chunk counter of this simulator run (gaps = chunks lost).
+    pub seq: u64,
+    /// Observation step of `images[0]`.
+    pub first_step: u64,
+    /// Valid steps (== REPLAY_STEPS except for a final partial chunk).
+    pub len: u32,
+    /// Episode of all steps (a chunk never spans a reset).
+    pub episode: u32,
+    pub images: [[f32; IMAGE_PIXELS]; REPLAY_STEPS],
+    pub actions: [[f32; ACTION_DIM]; REPLAY_STEPS],
+}

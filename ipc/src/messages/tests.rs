@@ -1,0 +1,72 @@
+//! Layout is a contract between separately built processes: a change here must be deliberate
+//! (bump the `/vN` in the type name with it).
+
+use core::mem::{align_of, size_of};
+use iceoryx2::prelude::ZeroCopySend;
+
+use super::*;
+
+#[test]
+fn sizes_and_alignment_are_pinned() {
+    assert_eq!(size_of::<GroundTruth>(), 48);
+    assert_eq!(size_of::<Observation>(), 8 * 3 + 96 * 4 + 8 + 8 + 48);
+    assert_eq!(size_of::<Command>(), 8 * 4 + 8 + 8);
+    assert_eq!(
+        size_of::<ReplayChunk>(),
+        8 * 3 + 8 + 20 * 96 * 4 + 20 * 2 * 4
+    );
+    assert_eq!(size_of::<WeightsHeader>(), 8 * 4 + 8);
+    for a in [
+        align_of::<Observation>(),
+        align_of::<Command>(),
+        align_of::<ReplayChunk>(),
+        align_of::<WeightsHeader>(),
+    ] {
+        assert_eq!(a, 8);
+    }
+}
+
+#[test]
+fn field_offsets_are_pinned() {
+    assert_eq!(core::mem::offset_of!(Observation, image), 24);
+    assert_eq!(core::mem::offset_of!(Observation, wheel_velocity), 24 + 384);
+    assert_eq!(core::mem::offset_of!(Observation, truth), 24 + 384 + 16);
+    assert_eq!(core::mem::offset_of!(Command, wheel_velocity), 32);
+    assert_eq!(core::mem::offset_of!(ReplayChunk, images), 32);
+}
+
+#[test]
+fn type_names_are_stable_and_distinct() {
+    // SAFETY: type_name() is unsafe only because implementors must keep names unique.
+    let names = unsafe {
+        [
+            Observation::type_name(),
+            GroundTruth::type_name(),
+            Command::type_name(),
+            ReplayChunk::type_name(),
+            WeightsHeader::type_name(),
+        ]
+    };
+    assert_eq!(
+        names,
+        [
+            "mtanet::Observation/v1",
+            "mtanet::GroundTruth/v1",
+            "mtanet::Command/v1",
+            "mtanet::ReplayChunk/v1",
+            "mtanet::WeightsHeader/v1",
+        ]
+    );
+}
+
+#[test]
+fn command_source_round_trips() {
+    for s in [
+        CommandSource::Reactive,
+        CommandSource::Teacher,
+        CommandSource::ActiveInference,
+    ] {
+        assert_eq!(CommandSource::from_u32(s as u32), Some(s));
+    }
+    assert_eq!(CommandSource::from_u32(7), None);
+}

@@ -1,0 +1,22 @@
+use bytemuck::Zeroable;
+use iceoryx2::prelude::ZeroCopySend;
+
+/// User header of the weights topic, whose payload is a `[u8]` slice holding one checkpoint
+/// (safetensors with config and metadata, exactly the bytes of a checkpoint file).
+#[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
+#[type_name("mtanet::WeightsHeader/v1")]
+#[repr(C)]
+pub struct WeightsHeader {
+    /// `CLOCK_MONOTONIC` ns when published.
+    pub stamp_ns: u64,
+    /// Increases by one per published checkpoint of a trainer run.
+    pub version: u64,
+    /// Training updates done when the checkpoint was taken.
+    pub train_step: u64,
+    /// Payload length in bytes (the slice may be longer when the allocator rounds up).
+    pub len: u64,
+    /// Last training loss.
+    pub loss: f32,
+    /// Checkpoint schema version.
+    pub schema: u32,
+}

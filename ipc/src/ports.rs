@@ -1,0 +1,255 @@
+//! Typed topic endpoints: a publisher paired with a notifier, a subscriber paired with a listener.
+//! Senders build messages in place in shared memory (no stack copy of a 8 KB replay chunk);
+//! receivers expose their listener so a WaitSet can block on them.
+
+use core::fmt::Debug;
+
+use bytemuck::Zeroable;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+
+/// Queue depths of one topic.
+#[derive(Debug, Clone, Copy)]
+pub struct TopicShape {
+    /// Samples a subscriber may hold unread; the oldest is overwritten beyond that (safe
+    /// overflow stays on: a slow reader must never block the simulator).
+    pub buffer: usize,
+    /// Samples kept for late subscribers.
+    pub history: usize,
+    pub max_subscribers: usize,
+    pub max_publishers: usize,
+}
+
+impl TopicShape {
+    /// Small queues for per-step messages (observation, command).
+    pub const STEP: Self = Self {
+        buffer: 4,
+        history: 0,
+        max_subscribers: 4,
+        max_publishers: 2,
+    };
+    /// A deeper queue for replay chunks, so a trainer busy with an update loses none.
+    pub const REPLAY: Self = Self {
+        buffer: 64,
+        history: 0,
+        max_subscribers: 4,
+        max_publishers: 2,
+    };
+}
+
+/// Why a topic endpoint could not be opened or used.
+#[derive(Debug, thiserror::Error)]
+pub enum PortError {
+    /// The service name is invalid.
+    #[error("invalid service name {0:?}")]
+    Name(String),
+    /// Opening or creating the service failed (incompatible type or settings from another build?).
+    #[error("cannot open service {service:?}: {detail}")]
+    Open { service: String, detail: String },
+    /// Creating a port of an opened service failed (too many ports?).
+    #[error("cannot create a port on {service:?}: {detail}")]
+    Port { service: String, detail: String },
+    /// Loaning, sending, receiving or notifying failed.
+    #[error("{op} on {service:?} failed: {detail}")]
+    Io {
+        op: &'static str,
+        service: String,
+        detail: String,
+    },
+}
+
+pub(crate) fn service_name(name: &str) -> Result<ServiceName, PortError> {
+    ServiceName::new(name).map_err(|_| PortError::Name(name.into()))
+}
+
+fn open_pubsub<T: Debug + ZeroCopySend>(
+    node: &Node<ipc::Service>,
+    name: &str,
+    shape: TopicShape,
+) -> Result<PubSubFactory<ipc::Service, T, ()>, PortError> {
+    node.service_builder(&service_name(name)?)
+        .publish_subscribe::<T>()
+        .enable_safe_overflow(true)
+        .subscriber_max_buffer_size(shape.buffer.max(shape.history).max(1))
+        .history_size(shape.history)
+        .max_subscribers(shape.max_subscribers)
+        .max_publishers(shape.max_publishers)
+        .open_or_create()
+        .map_err(|e| PortError::Open {
+            service: name.into(),
+            detail: format!("{e:?}"),
+        })
+}
+
+pub(crate) fn open_event(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, PortError> {
+    node.service_builder(&service_name(name)?)
+        .event()
+        .open_or_create()
+        .map_err(|e| PortError::Open {
+            service: name.into(),
+            detail: format!("{e:?} (event)"),
+        })
+}
+
+fn port_err(name: &str, e: impl Debug) -> PortError {
+    PortError::Port {
+        service: name.into(),
+        detail: format!("{e:?}"),
+    }
+}
+
+fn io_err(op: &'static str, name: &str, e: impl Debug) -> PortError {
+    PortError::Io {
+        op,
+        service: name.into(),
+        detail: format!("{e:?}"),
+    }
+}
+
+/// Publishes `T` on a topic and wakes its receivers.
+pub struct Sender<T: Debug + ZeroCopySend + 'static> {
+    name: &'static str,
+    service: PubSubFactory<ipc::Service, T, ()>,
+    publisher: Publisher<ipc::Service, T, ()>,
+    notifier: Notifier<ipc::Service>,
+}
+
+impl<T: Debug + ZeroCopySend + Zeroable + 'static> Sender<T> {
+    pub fn open(
+        node: &Node<ipc::Service>,
+        name: &'static str,
+        shape: TopicShape,
+    ) -> Result<Self, PortError> {
+        let service = open_pubsub::<T>(node, name, shape)?;
+        let publisher = service
+            .publisher_builder()
+            .create()
+            .map_err(|e| port_err(name, e))?;
+        let notifier = open_event(node, name)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| port_err(name, e))?;
+        Ok(Self {
+            name,
+            service,
+            publisher,
+            notifier,
+        })
+    }
+
+    /// Fills a zeroed sample in shared memory with `fill`, sends it and notifies.
+    /// Returns how many subscribers received it.
+    pub fn send_with(&self, fill: impl FnOnce(&mut T)) -> Result<usize, PortError> {
+        let mut sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| io_err("loan", self.name, e))?;
+        // SAFETY: T: Zeroable, so the all-zero bit pattern is a valid T.
+        let mut sample = unsafe {
+            sample.payload_mut().as_mut_ptr().write_bytes(0, 1);
+            sample.assume_init()
+        };
+        fill(sample.payload_mut());
+        let delivered = sample.send().map_err(|e| io_err("send", self.name, e))?;
+        self.notifier
+            .notify()
+            .map_err(|e| io_err("notify", self.name, e))?;
+        Ok(delivered)
+    }
+
+    /// Subscribers currently connected (any process).
+    pub fn subscribers(&self) -> usize {
+        self.service.dynamic_config().number_of_subscribers()
+    }
+
+    /// Publishers currently connected, this one included.
+    pub fn publishers(&self) -> usize {
+        self.service.dynamic_config().number_of_publishers()
+    }
+}
+
+/// Receives `T` from a topic; attach [`Receiver::listener`] to a WaitSet to block on it.
+pub struct Receiver<T: Debug + ZeroCopySend + 'static> {
+    name: &'static str,
+    service: PubSubFactory<ipc::Service, T, ()>,
+    subscriber: Subscriber<ipc::Service, T, ()>,
+    listener: Listener<ipc::Service>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Receiver<T> {
+    pub fn open(
+        node: &Node<ipc::Service>,
+        name: &'static str,
+        shape: TopicShape,
+    ) -> Result<Self, PortError> {
+        let service = open_pubsub::<T>(node, name, shape)?;
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| port_err(name, e))?;
+        let listener = open_event(node, name)?
+            .listener_builder()
+            .create()
+            .map_err(|e| port_err(name, e))?;
+        Ok(Self {
+            name,
+            service,
+            subscriber,
+            listener,
+        })
+    }
+
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// Consumes pending wake-ups so the listener's descriptor stops being ready.
+    pub fn drain_events(&self) -> Result<(), PortError> {
+        self.listener
+            .try_wait(|_| {})
+            .map(|_| ())
+            .map_err(|e| io_err("listen", self.name, e))
+    }
+
+    /// Blocks up to `timeout` for a wake-up (used where one input paces the loop).
+    pub fn wait(&self, timeout: core::time::Duration) -> Result<(), PortError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| io_err("listen", self.name, e))
+    }
+
+    /// Calls `f` with each pending message in order, reading them in place in shared memory.
+    /// Returns how many there were.
+    pub fn for_each(&self, mut f: impl FnMut(&T)) -> Result<usize, PortError> {
+        let mut n = 0;
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| io_err("receive", self.name, e))?
+        {
+            f(sample.payload());
+            n += 1;
+        }
+        Ok(n)
+    }
+
+    /// The newest pending message (a copy), dropping older ones.
+    pub fn latest(&self) -> Result<Option<T>, PortError> {
+        let mut last = None;
+        self.for_each(|m| last = Some(*m))?;
+        Ok(last)
+    }
+
+    /// Publishers currently connected (any process).
+    pub fn publishers(&self) -> usize {
+        self.service.dynamic_config().number_of_publishers()
+    }
+}

@@ -1,0 +1,140 @@
+//! The weights topic: whole checkpoints as a `[u8]` slice behind a [`WeightsHeader`]. History 1
+//! gives a predictor that starts (or restarts) late the newest weights at once; the allocator
+//! grows the slice in powers of two when a larger model is published.
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use crate::ports::{PortError, open_event, service_name};
+use crate::{WeightsHeader, names, stamp};
+
+type Factory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+    ipc::Service,
+    [u8],
+    WeightsHeader,
+>;
+
+/// First allocation per sample; large enough for the default model's checkpoint.
+const INITIAL_MAX_BYTES: usize = 4 << 20;
+
+fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
+    node.service_builder(&service_name(names::WEIGHTS)?)
+        .publish_subscribe::<[u8]>()
+        .user_header::<WeightsHeader>()
+        .enable_safe_overflow(true)
+        .history_size(1)
+        .subscriber_max_buffer_size(1)
+        .subscriber_max_borrowed_samples(1)
+        .max_subscribers(4)
+        .max_publishers(1)
+        .open_or_create()
+        .map_err(|e| PortError::Open {
+            service: names::WEIGHTS.into(),
+            detail: format!("{e:?}"),
+        })
+}
+
+fn err(op: &'static str, e: impl core::fmt::Debug) -> PortError {
+    PortError::Io {
+        op,
+        service: names::WEIGHTS.into(),
+        detail: format!("{e:?}"),
+    }
+}
+
+/// The trainer's end.
+pub struct WeightsSender {
+    publisher: Publisher<ipc::Service, [u8], WeightsHeader>,
+    notifier: Notifier<ipc::Service>,
+    _service: Factory,
+}
+
+impl WeightsSender {
+    pub fn open(node: &Node<ipc::Service>) -> Result<Self, PortError> {
+        let service = open(node)?;
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(INITIAL_MAX_BYTES)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(1)
+            .create()
+            .map_err(|e| err("create publisher", e))?;
+        let notifier = open_event(node, names::WEIGHTS)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| err("create notifier", e))?;
+        Ok(Self {
+            publisher,
+            notifier,
+            _service: service,
+        })
+    }
+
+    /// Publishes one checkpoint (`bytes`) with its header; `header.len` and `stamp_ns` are set here.
+    pub fn send(&self, mut header: WeightsHeader, bytes: &[u8]) -> Result<(), PortError> {
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(bytes.len())
+            .map_err(|e| err("loan", e))?;
+        header.len = bytes.len() as u64;
+        header.stamp_ns = stamp::monotonic_ns();
+        *sample.user_header_mut() = header;
+        sample
+            .write_from_slice(bytes)
+            .send()
+            .map_err(|e| err("send", e))?;
+        self.notifier.notify().map_err(|e| err("notify", e))?;
+        Ok(())
+    }
+}
+
+/// The predictor's end.
+pub struct WeightsReceiver {
+    subscriber: Subscriber<ipc::Service, [u8], WeightsHeader>,
+    listener: Listener<ipc::Service>,
+    _service: Factory,
+}
+
+impl WeightsReceiver {
+    pub fn open(node: &Node<ipc::Service>) -> Result<Self, PortError> {
+        let service = open(node)?;
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| err("create subscriber", e))?;
+        let listener = open_event(node, names::WEIGHTS)?
+            .listener_builder()
+            .create()
+            .map_err(|e| err("create listener", e))?;
+        Ok(Self {
+            subscriber,
+            listener,
+            _service: service,
+        })
+    }
+
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// The newest pending checkpoint, handed to `f` in place (no copy of the blob); older pending
+    /// ones are skipped. Returns what `f` returned, if there was one.
+    pub fn latest<R>(
+        &self,
+        f: impl FnOnce(&WeightsHeader, &[u8]) -> R,
+    ) -> Result<Option<R>, PortError> {
+        let _ = self.listener.try_wait(|_| {});
+        let mut newest = None;
+        while let Some(sample) = self.subscriber.receive().map_err(|e| err("receive", e))? {
+            newest = Some(sample);
+        }
+        Ok(newest.map(|s| {
+            let header = *s.user_header();
+            let len = (header.len as usize).min(s.payload().len());
+            f(&header, &s.payload()[..len])
+        }))
+    }
+}
