@@ -1,0 +1,306 @@
+//! The simulated world: the compiled scene, its state, and the sensors read from it.
+
+use mujoco_rs::prelude::*;
+
+use crate::camera::{RayCamera, luminance};
+use crate::car::{self, names};
+use crate::config::{SceneConfig, SceneError};
+use crate::mjcf::{self, FLOOR_GROUP, LINE_GROUP, MjcfOptions};
+use crate::track::Track;
+use crate::truth::{self, GroundTruth, LapCounter};
+use crate::{IMAGE_PIXELS, Sensors};
+
+/// Geom groups the cameras see (floor and line) and the line sensors react to (line only).
+fn group_mask(groups: &[u8]) -> [u8; 6] {
+    let mut m = [0u8; 6];
+    for &g in groups {
+        m[g as usize] = 1;
+    }
+    m
+}
+
+/// Model indices looked up once by name.
+#[derive(Debug, Clone)]
+struct Ids {
+    free_qpos: usize,
+    free_qvel: usize,
+    actuators: [usize; 2],
+    wheel_sensors: [usize; 2],
+    line_sites: [usize; 3],
+}
+
+/// A line-tracer car on a track. Not thread-safe to share, but can move between threads.
+pub struct World {
+    cfg: SceneConfig,
+    track: Track,
+    mjcf: String,
+    data: MjData<Box<MjModel>>,
+    ids: Ids,
+    substeps: u32,
+    cmd: [f64; 2],
+    rejected: u64,
+    laps: LapCounter,
+    camera: RayCamera,
+    side_cameras: Option<[RayCamera; 2]>,
+    geom_grey: Vec<f32>,
+    camera_groups: [u8; 6],
+    line_groups: [u8; 6],
+}
+
+impl World {
+    /// Loads the track, generates the MJCF, compiles it with MuJoCo and places the car at the
+    /// start (sensor bar on the first waypoint, heading along the first segment).
+    pub fn new(cfg: &SceneConfig) -> Result<World, SceneError> {
+        let substeps = cfg.validate()?;
+        let track = Track::load(&cfg.track)?;
+        let mjcf = mjcf::scene(
+            &track,
+            &MjcfOptions {
+                timestep_s: cfg.physics_timestep_s,
+                max_wheel_speed: cfg.max_wheel_speed,
+            },
+        );
+        let model = MjModel::from_xml_string(&mjcf).map_err(|e| SceneError::Compile {
+            track: cfg.track.clone(),
+            message: e.to_string(),
+        })?;
+        let data = MjData::try_new(Box::new(model)).map_err(|e| SceneError::Compile {
+            track: cfg.track.clone(),
+            message: e.to_string(),
+        })?;
+        let m = data.model();
+        let id = |kind: MjtObjBase, label: &'static str, name: &str| {
+            m.name_to_id(kind, name)
+                .ok_or_else(|| SceneError::MissingObject {
+                    kind: label,
+                    name: name.to_string(),
+                })
+        };
+        let free = id(MjtObjBase::mjOBJ_JOINT, "joint", names::BODY)?;
+        let act = |k: usize| {
+            id(
+                MjtObjBase::mjOBJ_ACTUATOR,
+                "actuator",
+                names::WHEEL_JOINTS[k],
+            )
+        };
+        let sens = |k: usize| -> Result<usize, SceneError> {
+            let s = id(MjtObjBase::mjOBJ_SENSOR, "sensor", names::WHEEL_SENSORS[k])?;
+            Ok(m.sensor_adr()[s] as usize)
+        };
+        let site = |k: usize| id(MjtObjBase::mjOBJ_SITE, "site", names::LINE_SITES[k]);
+        let cam = |name: &str| -> Result<RayCamera, SceneError> {
+            let c = id(MjtObjBase::mjOBJ_CAMERA, "camera", name)?;
+            Ok(RayCamera::new(c, m.cam_fovy()[c]))
+        };
+        let ids = Ids {
+            free_qpos: m.jnt_qposadr()[free] as usize,
+            free_qvel: m.jnt_dofadr()[free] as usize,
+            actuators: [act(0)?, act(1)?],
+            wheel_sensors: [sens(0)?, sens(1)?],
+            line_sites: [site(0)?, site(1)?, site(2)?],
+        };
+        let camera = cam(names::CAMERA_MID)?;
+        let side_cameras = if cfg.side_cameras {
+            Some([cam(names::CAMERAS_SIDE[0])?, cam(names::CAMERAS_SIDE[1])?])
+        } else {
+            None
+        };
+        let geom_grey = m.geom_rgba().iter().map(|&c| luminance(c)).collect();
+        let laps = LapCounter::new(track.length_m(), 0.0);
+        let mut world = World {
+            cfg: cfg.clone(),
+            track,
+            mjcf,
+            data,
+            ids,
+            substeps,
+            cmd: [0.0; 2],
+            rejected: 0,
+            laps,
+            camera,
+            side_cameras,
+            geom_grey,
+            camera_groups: group_mask(&[FLOOR_GROUP, LINE_GROUP]),
+            line_groups: group_mask(&[LINE_GROUP]),
+        };
+        world.reset();
+        Ok(world)
+    }
+
+    /// The generated MJCF.
+    pub fn mjcf(&self) -> &str {
+        &self.mjcf
+    }
+
+    pub fn track(&self) -> &Track {
+        &self.track
+    }
+
+    pub fn config(&self) -> &SceneConfig {
+        &self.cfg
+    }
+
+    /// Physics steps per control step.
+    pub fn substeps(&self) -> u32 {
+        self.substeps
+    }
+
+    /// The wheel command in force (the last accepted one, after clamping), rad/s.
+    pub fn command(&self) -> [f64; 2] {
+        self.cmd
+    }
+
+    /// Applies the wheel command [left, right] in rad/s for one control period (several physics
+    /// steps). A non-finite command is rejected (counted) and the last good command is kept;
+    /// returns whether it was accepted. Accepted commands are clamped to `max_wheel_speed`.
+    pub fn step(&mut self, wheel_cmd: [f32; 2]) -> bool {
+        let accepted = wheel_cmd.iter().all(|v| v.is_finite());
+        if accepted {
+            let lim = self.cfg.max_wheel_speed;
+            self.cmd = wheel_cmd.map(|v| (v as f64).clamp(-lim, lim));
+        } else {
+            self.rejected += 1;
+            tracing::debug!(?wheel_cmd, "rejected a non-finite wheel command");
+        }
+        let [a, b] = self.ids.actuators;
+        let ctrl = self.data.ctrl_mut();
+        ctrl[a] = self.cmd[0];
+        ctrl[b] = self.cmd[1];
+        // step2 then step1: the state advances, then kinematics and sensors are brought up to
+        // date for it, so `sense` reads the present and not the state one physics step ago.
+        for _ in 0..self.substeps {
+            self.data.step2();
+            self.data.step1();
+        }
+        let (s, _) = self.bar_on_track();
+        self.laps.update(s);
+        accepted
+    }
+
+    /// Runs only the physics for one control period with the current command: the bare cost
+    /// of stepping, for benchmarks.
+    pub fn step_physics_only(&mut self) {
+        for _ in 0..self.substeps {
+            self.data.step();
+        }
+    }
+
+    /// All sensors at the current state.
+    pub fn sense(&mut self) -> Sensors {
+        let mut image = [0.0; IMAGE_PIXELS];
+        self.camera.render(
+            &mut self.data,
+            &self.camera_groups,
+            &self.geom_grey,
+            &mut image,
+        );
+        let side_images = self.side_cameras.as_mut().map(|cams| {
+            let mut imgs = [[0.0; IMAGE_PIXELS]; 2];
+            for (cam, img) in cams.iter_mut().zip(imgs.iter_mut()) {
+                cam.render(&mut self.data, &self.camera_groups, &self.geom_grey, img);
+            }
+            imgs
+        });
+        let line = self.line_sensors();
+        let sd = self.data.sensordata();
+        let wheel_velocity = self.ids.wheel_sensors.map(|adr| sd[adr] as f32);
+        Sensors {
+            image,
+            side_images,
+            line,
+            wheel_velocity,
+            truth: self.truth(),
+        }
+    }
+
+    /// Line sensors: a short ray straight down from each sensor site; on when it hits the line.
+    fn line_sensors(&mut self) -> [bool; 3] {
+        let mut on = [false; 3];
+        for (k, &site) in self.ids.line_sites.iter().enumerate() {
+            let pos = self.data.site_xpos()[site];
+            let (hit, dist) = self.data.ray(
+                &pos,
+                &[0.0, 0.0, -1.0],
+                Some(&self.line_groups),
+                true,
+                None,
+                None,
+            );
+            on[k] = hit.is_some() && dist >= 0.0 && dist < 2.0 * car::SENSOR_HEIGHT_M;
+        }
+        on
+    }
+
+    /// Position and heading of the car origin.
+    fn pose(&self) -> (f64, f64, f64) {
+        let q = &self.data.qpos()[self.ids.free_qpos..self.ids.free_qpos + 7];
+        let (w, x, y, z) = (q[3], q[4], q[5], q[6]);
+        let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
+        (q[0], q[1], yaw)
+    }
+
+    /// Track arc length and signed lateral offset at the sensor-bar centre (the middle site).
+    fn bar_on_track(&self) -> (f64, f64) {
+        let bar = self.data.site_xpos()[self.ids.line_sites[1]];
+        let (_, _, yaw) = self.pose();
+        truth::lateral(&self.track, [bar[0], bar[1]], yaw)
+    }
+
+    /// Ground truth at the current state.
+    pub fn truth(&self) -> GroundTruth {
+        let (x, y, yaw) = self.pose();
+        let (track_s, lateral_m) = self.bar_on_track();
+        GroundTruth {
+            x,
+            y,
+            yaw,
+            track_s,
+            lateral_m,
+            laps: self.laps.laps(),
+            on_line: lateral_m.abs() < self.track.line_width_m() / 2.0,
+        }
+    }
+
+    /// Net distance driven along the track since the start/reset (negative when reversing),
+    /// metres; `truth().laps` is its whole number of track lengths, high-water marked.
+    pub fn progress_m(&self) -> f64 {
+        self.laps.progress()
+    }
+
+    /// Simulated time since the start/reset, seconds.
+    pub fn time_s(&self) -> f64 {
+        self.data.time()
+    }
+
+    /// Non-finite commands rejected since the world was built (not cleared by `reset`: it is a
+    /// health counter of whoever drives the world).
+    pub fn rejected_commands(&self) -> u64 {
+        self.rejected
+    }
+
+    /// Puts the car origin (axle midpoint) at (x, y) with heading `yaw`, at rest on the floor.
+    /// Keeps the time, the command and the lap count (the jump itself is not counted as
+    /// progress).
+    pub fn set_pose(&mut self, x: f64, y: f64, yaw: f64) {
+        let (qa, va) = (self.ids.free_qpos, self.ids.free_qvel);
+        let (s, c) = (yaw / 2.0).sin_cos();
+        let qpos = self.data.qpos_mut();
+        qpos[qa..qa + 7].copy_from_slice(&[x, y, car::WHEEL_RADIUS_M, c, 0.0, 0.0, s]);
+        // The free joint's 6 dofs and the wheels: the car is placed at rest.
+        self.data.qvel_mut()[va..].fill(0.0);
+        self.data.forward();
+        let (s, _) = self.bar_on_track();
+        self.laps.reanchor(s);
+    }
+
+    /// Back to the start pose at rest, time 0, command 0, lap count 0.
+    pub fn reset(&mut self) {
+        // qpos0 holds the start pose written into the MJCF.
+        self.data.reset();
+        self.cmd = [0.0; 2];
+        self.data.forward();
+        let (s, _) = self.bar_on_track();
+        self.laps = LapCounter::new(self.track.length_m(), s);
+    }
+}
