@@ -4,6 +4,7 @@
 //! Messages are plain `#[repr(C)]` data with an explicit iceoryx2 `type_name`, so two separately
 //! built binaries agree on them; sizes are pinned by tests in `messages`.
 
+pub mod cli;
 pub mod config;
 pub mod latency;
 pub mod logging;
@@ -11,6 +12,7 @@ pub mod messages;
 pub mod names;
 pub mod node;
 pub mod ports;
+pub mod report;
 pub mod shutdown;
 pub mod stamp;
 pub mod systemd;

@@ -1,6 +1,8 @@
 //! Logs go through `tracing` to stderr (journald picks them up under systemd). `RUST_LOG` picks the
 //! level; iceoryx2's own log is routed into tracing by its `tracing` feature.
 
+use std::io::IsTerminal;
+
 use tracing_subscriber::EnvFilter;
 
 /// Sets up the global subscriber. Default level: info, iceoryx2 at warn.
@@ -10,6 +12,7 @@ pub fn init() {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_target(false)
+        .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr)
         .try_init();
 }

@@ -12,6 +12,9 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
+/// A message being written in place in shared memory.
+pub type Loaned<T> = iceoryx2::sample_mut::SampleMut<ipc::Service, T, ()>;
+
 /// Queue depths of one topic.
 #[derive(Debug, Clone, Copy)]
 pub struct TopicShape {
@@ -144,24 +147,34 @@ impl<T: Debug + ZeroCopySend + Zeroable + 'static> Sender<T> {
         })
     }
 
-    /// Fills a zeroed sample in shared memory with `fill`, sends it and notifies.
-    /// Returns how many subscribers received it.
-    pub fn send_with(&self, fill: impl FnOnce(&mut T)) -> Result<usize, PortError> {
+    /// A zeroed sample in shared memory, to be filled in place (possibly over several steps)
+    /// and sent with [`Sender::send_loaned`].
+    pub fn loan_zeroed(&self) -> Result<Loaned<T>, PortError> {
         let mut sample = self
             .publisher
             .loan_uninit()
             .map_err(|e| io_err("loan", self.name, e))?;
         // SAFETY: T: Zeroable, so the all-zero bit pattern is a valid T.
-        let mut sample = unsafe {
+        Ok(unsafe {
             sample.payload_mut().as_mut_ptr().write_bytes(0, 1);
             sample.assume_init()
-        };
-        fill(sample.payload_mut());
+        })
+    }
+
+    /// Sends a loaned sample and wakes the receivers. Returns how many subscribers received it.
+    pub fn send_loaned(&self, sample: Loaned<T>) -> Result<usize, PortError> {
         let delivered = sample.send().map_err(|e| io_err("send", self.name, e))?;
         self.notifier
             .notify()
             .map_err(|e| io_err("notify", self.name, e))?;
         Ok(delivered)
+    }
+
+    /// Fills a zeroed sample in shared memory with `fill`, sends it and notifies.
+    pub fn send_with(&self, fill: impl FnOnce(&mut T)) -> Result<usize, PortError> {
+        let mut sample = self.loan_zeroed()?;
+        fill(sample.payload_mut());
+        self.send_loaned(sample)
     }
 
     /// Subscribers currently connected (any process).

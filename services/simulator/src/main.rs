@@ -1,1 +1,142 @@
-fn main() {}
+//! `mta-simulator`: the MuJoCo line-tracer world as an iceoryx2 service, or alone with the
+//! teacher driving (`--teacher-only`) for tests and data collection.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Parser;
+use mtanet_ipc::cli::CommonArgs;
+use mtanet_ipc::node::create_node;
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::{logging, report, systemd};
+use mtanet_scenes::{SceneConfig, Teacher, TeacherConfig, World};
+use mtanet_simulator::config::{Mode, SimulatorConfig};
+use mtanet_simulator::{service, standalone};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "mta-simulator",
+    version,
+    about = "MuJoCo line-tracer world for mtanet"
+)]
+struct Args {
+    /// Config sections read: [ipc], [simulator], [simulator.scene], [simulator.teacher].
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Track CSV (overrides simulator.scene.track).
+    #[arg(long)]
+    track: Option<PathBuf>,
+    /// lockstep or realtime (overrides simulator.mode).
+    #[arg(long, value_parser = parse_mode)]
+    mode: Option<Mode>,
+    /// Stop after this many steps (overrides simulator.max_steps; 0 = until a signal).
+    #[arg(long)]
+    max_steps: Option<u64>,
+    /// Wait for a trainer to subscribe before the first step (lockstep).
+    #[arg(long)]
+    expect_trainer: bool,
+    /// Seed of the teacher's exploration noise (overrides simulator.teacher.seed).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Std of the teacher's exploration noise in rad/s (overrides simulator.teacher.noise_std).
+    #[arg(long)]
+    noise: Option<f32>,
+    /// Run alone with the teacher driving, no iceoryx2.
+    #[arg(long, requires_all = ["sim_seconds", "report"])]
+    teacher_only: bool,
+    /// Simulated seconds to run (with --teacher-only).
+    #[arg(long)]
+    sim_seconds: Option<f64>,
+    /// Report JSON (with --teacher-only): laps, lateral_error_m, steps, real_time_factor...
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Record a dataset .npz (with --teacher-only).
+    #[arg(long, requires = "teacher_only")]
+    record: Option<PathBuf>,
+    /// Steps per recorded sequence.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
+    seq_len: u64,
+}
+
+fn parse_mode(s: &str) -> Result<Mode, String> {
+    match s {
+        "lockstep" => Ok(Mode::Lockstep),
+        "realtime" => Ok(Mode::Realtime),
+        _ => Err(format!("unknown mode {s:?}: use lockstep or realtime")),
+    }
+}
+
+fn main() -> anyhow::Result<()> {
+    logging::init();
+    let args = Args::parse();
+    let shutdown = Shutdown::install().context("installing signal handlers")?;
+    let (file, ipc) = args.common.load()?;
+    let mut scene: SceneConfig = file.section("simulator.scene")?;
+    let mut teacher_cfg: TeacherConfig = file.section("simulator.teacher")?;
+    let mut cfg: SimulatorConfig = file.section("simulator")?;
+    if let Some(t) = args.track {
+        scene.track = t;
+    }
+    if let Some(s) = args.seed {
+        teacher_cfg.seed = s;
+    }
+    if let Some(n) = args.noise {
+        teacher_cfg.noise_std = n;
+    }
+    if let Some(m) = args.mode {
+        cfg.mode = m;
+    }
+    if let Some(n) = args.max_steps {
+        cfg.max_steps = n;
+    }
+    cfg.expect_trainer |= args.expect_trainer;
+
+    let mut world = World::new(&scene)
+        .with_context(|| format!("loading the scene for track {}", scene.track.display()))?;
+    let mut teacher = Teacher::new(&teacher_cfg);
+    tracing::info!(track = %scene.track.display(), length_m = world.track().length_m(), "world ready");
+
+    if args.teacher_only {
+        let run = standalone::StandaloneRun {
+            sim_seconds: args.sim_seconds.unwrap_or_default(),
+            record: args.record,
+            seq_len: args.seq_len as usize,
+            seed: teacher_cfg.seed,
+        };
+        let rep = standalone::run(&mut world, &mut teacher, &run, &shutdown)?;
+        tracing::info!(
+            laps = rep.laps,
+            lateral_mean_m = rep.lateral_error_m.mean,
+            lateral_max_m = rep.lateral_error_m.max,
+            rtf = rep.real_time_factor,
+            "teacher run done"
+        );
+        let path = args
+            .report
+            .expect("clap requires --report with --teacher-only");
+        report::write_json(&path, &rep).with_context(|| format!("writing {}", path.display()))?;
+        return Ok(());
+    }
+
+    let node = create_node(&ipc, "mta-simulator")?;
+    let ports = service::Ports::open(&node)?;
+    systemd::ready("simulator running");
+    tracing::info!(namespace = %ipc.namespace, mode = ?cfg.mode, "simulator service started");
+    let summary = service::run(&ports, &mut world, &mut teacher, &cfg, &shutdown);
+    systemd::stopping();
+    let summary = summary?;
+    tracing::info!(
+        steps = summary.steps,
+        received = summary.commands_received,
+        missed = summary.missed_commands,
+        teacher_steps = summary.teacher_steps,
+        chunks = summary.replay_chunks_sent,
+        round_trip = %summary.round_trip,
+        "simulator stopped"
+    );
+    if let Some(path) = args.common.summary {
+        report::write_json(&path, &summary)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}

@@ -1,1 +1,48 @@
-fn main() {}
+//! `mta-trainer`: learns from the replay chunks the simulator streams through shared memory.
+
+use anyhow::Context;
+use clap::Parser;
+use mtanet_ipc::cli::CommonArgs;
+use mtanet_ipc::node::create_node;
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::{logging, report, systemd};
+use mtanet_trainer::config::TrainerConfig;
+use mtanet_trainer::service;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "mta-trainer",
+    version,
+    about = "Online MTA-PredNet training from shared-memory replay"
+)]
+struct Args {
+    /// Config sections read: [ipc], [trainer].
+    #[command(flatten)]
+    common: CommonArgs,
+}
+
+fn main() -> anyhow::Result<()> {
+    logging::init();
+    let args = Args::parse();
+    let shutdown = Shutdown::install().context("installing signal handlers")?;
+    let (file, ipc) = args.common.load()?;
+    let cfg: TrainerConfig = file.section("trainer")?;
+    tch::set_num_threads(cfg.torch_threads);
+    let node = create_node(&ipc, "mta-trainer")?;
+    let ports = service::Ports::open(&node)?;
+    systemd::ready("trainer running");
+    tracing::info!(namespace = %ipc.namespace, "trainer service started");
+    let summary = service::run(&ports, &cfg, &shutdown);
+    systemd::stopping();
+    let summary = summary?;
+    tracing::info!(
+        chunks = summary.chunks_received,
+        lost = summary.chunks_lost,
+        "trainer stopped"
+    );
+    if let Some(path) = &args.common.summary {
+        report::write_json(path, &summary)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}

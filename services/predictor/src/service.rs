@@ -1,0 +1,145 @@
+//! The predictor loop: block in a WaitSet on observations and weights; answer each observation
+//! with a command for the same step.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use mtanet_ipc::latency::{LatencyStats, LatencySummary};
+use mtanet_ipc::node::create_waitset;
+use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::systemd::Watchdog;
+use mtanet_ipc::weights_topic::WeightsReceiver;
+use mtanet_ipc::{Command, Observation, names, stamp};
+use serde::{Deserialize, Serialize};
+
+use crate::config::PredictorConfig;
+use crate::policy::Reactive;
+
+pub struct Ports {
+    pub observations: Receiver<Observation>,
+    pub commands: Sender<Command>,
+    pub weights: WeightsReceiver,
+}
+
+impl Ports {
+    pub fn open(node: &Node<ipc::Service>) -> anyhow::Result<Self> {
+        Ok(Self {
+            observations: Receiver::open(node, names::OBSERVATION, TopicShape::STEP)?,
+            commands: Sender::open(node, names::COMMAND, TopicShape::STEP)?,
+            weights: WeightsReceiver::open(node)?,
+        })
+    }
+}
+
+/// What the predictor reports at exit.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Summary {
+    pub observations: u64,
+    pub commands_sent: u64,
+    /// Observations whose step did not follow the previous one (lost or reordered).
+    pub step_gaps: u64,
+    pub weights_received: u64,
+    pub model_version: u64,
+    /// Observation published -> command decided (transport in + own compute).
+    pub observation_age: LatencySummary,
+    /// Own compute per step (policy only).
+    pub compute: LatencySummary,
+}
+
+pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
+    let waitset = create_waitset()?;
+    let obs_guard = waitset.attach_notification(ports.observations.listener())?;
+    let weights_guard = waitset.attach_notification(ports.weights.listener())?;
+    let mut reactive = Reactive::new(cfg);
+    let mut summary = Summary::default();
+    let (mut age, mut compute) = (LatencyStats::new(), LatencyStats::new());
+    let mut expected_step: Option<u64> = None;
+    let mut watchdog = Watchdog::from_env();
+    let mut last_log = Instant::now();
+    let mut failure: Option<anyhow::Error> = None;
+
+    while !shutdown.requested() && failure.is_none() {
+        let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+            let result = if id.has_event_from(&obs_guard) {
+                answer_observations(
+                    ports,
+                    &mut reactive,
+                    &mut summary,
+                    &mut expected_step,
+                    &mut age,
+                    &mut compute,
+                )
+            } else if id.has_event_from(&weights_guard) {
+                receive_weights(ports, &mut summary)
+            } else {
+                Ok(())
+            };
+            match result {
+                Ok(()) => CallbackProgression::Continue,
+                Err(e) => {
+                    failure = Some(e);
+                    CallbackProgression::Stop
+                }
+            }
+        };
+        // The timeout bounds how long a signal waits to be noticed.
+        waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
+        watchdog.pet();
+        if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
+            last_log = Instant::now();
+            tracing::info!(answered = summary.commands_sent, compute = %compute.summary(), "running");
+        }
+    }
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    summary.observation_age = age.summary();
+    summary.compute = compute.summary();
+    Ok(summary)
+}
+
+fn answer_observations(
+    ports: &Ports,
+    reactive: &mut Reactive,
+    summary: &mut Summary,
+    expected_step: &mut Option<u64>,
+    age: &mut LatencyStats,
+    compute: &mut LatencyStats,
+) -> anyhow::Result<()> {
+    ports.observations.drain_events()?;
+    let mut pending = Vec::new();
+    ports.observations.for_each(|o| pending.push(*o))?;
+    for obs in pending {
+        summary.observations += 1;
+        if expected_step.is_some_and(|s| s != obs.step) {
+            summary.step_gaps += 1;
+        }
+        *expected_step = Some(obs.step + 1);
+        let t0 = Instant::now();
+        let (wheels, source) = reactive.act(&obs);
+        let compute_ns = t0.elapsed().as_nanos() as u64;
+        ports.commands.send_with(|c| {
+            c.step = obs.step;
+            c.obs_stamp_ns = obs.stamp_ns;
+            c.model_version = summary.model_version;
+            c.wheel_velocity = wheels;
+            c.source = source as u32;
+            c.compute_ns = compute_ns.min(u64::from(u32::MAX)) as u32;
+            c.stamp_ns = stamp::monotonic_ns();
+        })?;
+        summary.commands_sent += 1;
+        compute.record_ns(compute_ns);
+        age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
+    }
+    Ok(())
+}
+
+fn receive_weights(ports: &Ports, summary: &mut Summary) -> anyhow::Result<()> {
+    if let Some((version, len)) = ports.weights.latest(|h, bytes| (h.version, bytes.len()))? {
+        summary.weights_received += 1;
+        summary.model_version = version;
+        tracing::info!(version, bytes = len, "weights received");
+    }
+    Ok(())
+}

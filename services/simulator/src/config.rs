@@ -1,0 +1,62 @@
+//! `[simulator]` section of the stack's config file (with `[simulator.scene]` and
+//! `[simulator.teacher]` for the world and the teacher driver).
+
+use serde::{Deserialize, Serialize};
+
+/// How simulated time relates to wall-clock time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Mode {
+    /// Each step waits for the predictor's command for that step (bounded): reproducible runs,
+    /// as fast as the slowest process.
+    Lockstep,
+    /// Steps at 50 Hz wall clock with whatever command arrived last, like a real robot.
+    Realtime,
+}
+
+/// What to drive with when the predictor's command for a step does not come in time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MissPolicy {
+    /// The teacher's command (keeps the car on the line and the data useful).
+    Teacher,
+    /// Stop the wheels.
+    Stop,
+    /// Repeat the last command.
+    Hold,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimulatorConfig {
+    pub mode: Mode,
+    /// Lockstep: how long a step waits for its command before the miss policy applies.
+    pub command_timeout_ms: u64,
+    pub on_missed_command: MissPolicy,
+    /// Lockstep: wait this long at start for a predictor (and a trainer, if expected) to connect;
+    /// without one the teacher drives.
+    pub wait_for_peers_s: f64,
+    /// Also wait for a replay subscriber (the trainer) before the first step.
+    pub expect_trainer: bool,
+    /// Stop after this many steps (0: run until a signal).
+    pub max_steps: u64,
+    /// Publish replay chunks for the trainer.
+    pub replay: bool,
+    /// Seconds of wall clock between progress log lines.
+    pub log_every_s: f64,
+}
+
+impl Default for SimulatorConfig {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Lockstep,
+            command_timeout_ms: 200,
+            on_missed_command: MissPolicy::Teacher,
+            wait_for_peers_s: 30.0,
+            expect_trainer: false,
+            max_steps: 0,
+            replay: true,
+            log_every_s: 5.0,
+        }
+    }
+}

@@ -1,0 +1,276 @@
+//! The simulator as a process among processes: publishes an observation per control step, takes
+//! the predictor's command for it (lockstep: bounded wait; realtime: latest at a 50 Hz tick), and
+//! streams replay chunks to the trainer. Without a predictor the teacher drives.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use iceoryx2::prelude::*;
+use mtanet_ipc::latency::{LatencyStats, LatencySummary};
+use mtanet_ipc::ports::{Loaned, Receiver, Sender, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::systemd::Watchdog;
+use mtanet_ipc::{Command, Observation, REPLAY_STEPS, ReplayChunk, names, stamp};
+use mtanet_scenes::{Sensors, Teacher, World};
+use serde::{Deserialize, Serialize};
+
+use crate::config::{MissPolicy, Mode, SimulatorConfig};
+use crate::drive_stats::{DriveStats, LateralError};
+
+/// The simulator's iceoryx2 endpoints.
+pub struct Ports {
+    pub observations: Sender<Observation>,
+    pub commands: Receiver<Command>,
+    pub replay: Sender<ReplayChunk>,
+}
+
+impl Ports {
+    pub fn open(node: &Node<ipc::Service>) -> anyhow::Result<Self> {
+        Ok(Self {
+            observations: Sender::open(node, names::OBSERVATION, TopicShape::STEP)?,
+            commands: Receiver::open(node, names::COMMAND, TopicShape::STEP)?,
+            replay: Sender::open(node, names::REPLAY, TopicShape::REPLAY)?,
+        })
+    }
+}
+
+/// What the simulator reports at exit (`--summary FILE.json`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Summary {
+    pub steps: u64,
+    /// Steps driven by a command from the predictor for that very step.
+    pub commands_received: u64,
+    /// Steps where a predictor was connected but its command did not come in time.
+    pub missed_commands: u64,
+    /// Commands that arrived for another step (late answers to earlier steps), dropped.
+    pub stale_commands: u64,
+    /// Non-finite commands rejected by the world.
+    pub rejected_commands: u64,
+    /// Steps driven by the teacher because no predictor was connected.
+    pub teacher_steps: u64,
+    pub replay_chunks_sent: u64,
+    /// Observation published -> its command received, as seen by the simulator.
+    pub round_trip: LatencySummary,
+    /// Wall time of one whole step (physics, sensors, publishing, waiting).
+    pub step_time: LatencySummary,
+    pub laps: u32,
+    pub lateral_error_m: LateralError,
+    pub sim_seconds: f64,
+    pub wall_seconds: f64,
+}
+
+/// Runs until `cfg.max_steps` or a signal.
+pub fn run(
+    ports: &Ports,
+    world: &mut World,
+    teacher: &mut Teacher,
+    cfg: &SimulatorConfig,
+    shutdown: &Shutdown,
+) -> anyhow::Result<Summary> {
+    let period = world.config().control_period_s;
+    if cfg.mode == Mode::Lockstep {
+        wait_for_peers(ports, cfg, shutdown);
+    }
+    let mut summary = Summary::default();
+    let mut drive = DriveStats::default();
+    let (mut round_trip, mut step_time) = (LatencyStats::new(), LatencyStats::new());
+    let mut chunk = ChunkBuilder::default();
+    let mut watchdog = Watchdog::from_env();
+    let mut last_cmd = [0.0f32; 2];
+    let start = Instant::now();
+    let mut last_log = start;
+    let mut step = 0u64;
+    while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
+        let t0 = Instant::now();
+        let sensors = world.sense();
+        drive.record(&sensors.truth);
+        let obs_stamp = publish_observation(ports, step, world.time_s(), &sensors)?;
+        let predictor = ports.commands.publishers() > 0;
+        let answer = match (predictor, cfg.mode) {
+            (false, _) => None,
+            (true, Mode::Lockstep) => {
+                let timeout = Duration::from_millis(cfg.command_timeout_ms);
+                await_command(ports, step, timeout, shutdown, &mut summary.stale_commands)?
+            }
+            (true, Mode::Realtime) => ports.commands.latest()?,
+        };
+        let cmd = match answer {
+            Some(c) => {
+                if c.step == step {
+                    summary.commands_received += 1;
+                    round_trip.record_ns(stamp::elapsed_ns(obs_stamp));
+                }
+                c.wheel_velocity
+            }
+            None if !predictor => {
+                summary.teacher_steps += 1;
+                teacher.act(&sensors)
+            }
+            None => {
+                summary.missed_commands += 1;
+                match cfg.on_missed_command {
+                    MissPolicy::Teacher => teacher.act(&sensors),
+                    MissPolicy::Stop => [0.0, 0.0],
+                    MissPolicy::Hold => last_cmd,
+                }
+            }
+        };
+        if world.step(cmd) {
+            last_cmd = cmd;
+        } else {
+            tracing::warn!(
+                step,
+                ?cmd,
+                "rejected a non-finite wheel command; keeping the last good one"
+            );
+        }
+        if cfg.replay {
+            chunk.push(&ports.replay, step, &sensors)?;
+        }
+        step += 1;
+        if cfg.mode == Mode::Realtime {
+            let next = start + Duration::from_secs_f64(step as f64 * period);
+            std::thread::sleep(next.saturating_duration_since(Instant::now()));
+        }
+        step_time.record_ns(t0.elapsed().as_nanos() as u64);
+        watchdog.pet();
+        if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
+            last_log = Instant::now();
+            tracing::info!(
+                step,
+                laps = drive.laps(),
+                received = summary.commands_received,
+                missed = summary.missed_commands,
+                round_trip = %round_trip.summary(),
+                "running"
+            );
+        }
+    }
+    summary.steps = step;
+    summary.replay_chunks_sent = chunk.sent;
+    summary.rejected_commands = world.rejected_commands();
+    summary.round_trip = round_trip.summary();
+    summary.step_time = step_time.summary();
+    summary.laps = drive.laps();
+    summary.lateral_error_m = drive.lateral();
+    summary.sim_seconds = world.time_s();
+    summary.wall_seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Lockstep runs are only reproducible if every step is answered, so wait (bounded) for the
+/// predictor, and for the trainer when one is expected, before the first step.
+fn wait_for_peers(ports: &Ports, cfg: &SimulatorConfig, shutdown: &Shutdown) {
+    let deadline = Instant::now() + Duration::from_secs_f64(cfg.wait_for_peers_s.max(0.0));
+    let ready = || {
+        ports.commands.publishers() > 0 && (!cfg.expect_trainer || ports.replay.subscribers() > 0)
+    };
+    let mut told = false;
+    while !ready() && !shutdown.requested() && Instant::now() < deadline {
+        if !told {
+            tracing::info!(
+                expect_trainer = cfg.expect_trainer,
+                "waiting for peers to connect"
+            );
+            told = true;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    if !ready() {
+        tracing::warn!(
+            "peers missing after {:.1} s: starting anyway (the teacher drives without a predictor)",
+            cfg.wait_for_peers_s
+        );
+    }
+}
+
+fn publish_observation(ports: &Ports, step: u64, time_s: f64, s: &Sensors) -> anyhow::Result<u64> {
+    let mut stamp_ns = 0;
+    ports
+        .observations
+        .send_with(|o| {
+            o.step = step;
+            o.sim_time_s = time_s;
+            o.image = s.image;
+            o.wheel_velocity = s.wheel_velocity;
+            o.line_sensors = s.line.map(u8::from);
+            let t = &s.truth;
+            o.truth.x_m = t.x;
+            o.truth.y_m = t.y;
+            o.truth.yaw_rad = t.yaw;
+            o.truth.track_s_m = t.track_s;
+            o.truth.lateral_m = t.lateral_m;
+            o.truth.laps = t.laps;
+            o.truth.on_line = u32::from(t.on_line);
+            // Stamped last, right before sending: the round trip starts here.
+            o.stamp_ns = stamp::monotonic_ns();
+            stamp_ns = o.stamp_ns;
+        })
+        .context("publishing an observation")?;
+    Ok(stamp_ns)
+}
+
+/// Waits up to `timeout` for the command answering `step`; drops answers to earlier steps.
+fn await_command(
+    ports: &Ports,
+    step: u64,
+    timeout: Duration,
+    shutdown: &Shutdown,
+    stale: &mut u64,
+) -> anyhow::Result<Option<Command>> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let mut found = None;
+        ports.commands.for_each(|c| {
+            if c.step == step {
+                found = Some(*c);
+            } else {
+                *stale += 1;
+            }
+        })?;
+        if found.is_some() {
+            return Ok(found);
+        }
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() || shutdown.requested() {
+            return Ok(None);
+        }
+        // Short slices so a signal ends the wait quickly even if no command ever comes.
+        ports.commands.wait(left.min(Duration::from_millis(50)))?;
+    }
+}
+
+/// Writes consecutive steps straight into a loaned replay sample in shared memory; sends it when full.
+#[derive(Default)]
+struct ChunkBuilder {
+    sample: Option<Loaned<ReplayChunk>>,
+    sent: u64,
+}
+
+impl ChunkBuilder {
+    /// Adds a step; sends the chunk once it holds `REPLAY_STEPS` steps.
+    fn push(&mut self, replay: &Sender<ReplayChunk>, step: u64, s: &Sensors) -> anyhow::Result<()> {
+        let sample = match self.sample.as_mut() {
+            Some(sample) => sample,
+            None => {
+                let mut fresh = replay.loan_zeroed().context("loaning a replay chunk")?;
+                let c = fresh.payload_mut();
+                c.seq = self.sent;
+                c.first_step = step;
+                self.sample.insert(fresh)
+            }
+        };
+        let c = sample.payload_mut();
+        let i = c.len as usize;
+        c.images[i] = s.image;
+        c.actions[i] = s.wheel_velocity;
+        c.len += 1;
+        if c.len as usize == REPLAY_STEPS {
+            c.stamp_ns = stamp::monotonic_ns();
+            let full = self.sample.take().expect("a chunk is being filled");
+            replay.send_loaned(full).context("sending a replay chunk")?;
+            self.sent += 1;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,86 @@
+//! The trainer loop: block in a WaitSet on replay chunks and copy them into the replay buffer.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use mtanet_ipc::node::create_waitset;
+use mtanet_ipc::ports::{Receiver, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::systemd::Watchdog;
+use mtanet_ipc::weights_topic::WeightsSender;
+use mtanet_ipc::{ReplayChunk, names};
+use serde::{Deserialize, Serialize};
+
+use crate::config::TrainerConfig;
+use crate::replay::ReplayBuffer;
+
+pub struct Ports {
+    pub replay: Receiver<ReplayChunk>,
+    pub weights: WeightsSender,
+}
+
+impl Ports {
+    pub fn open(node: &Node<ipc::Service>) -> anyhow::Result<Self> {
+        Ok(Self {
+            replay: Receiver::open(node, names::REPLAY, TopicShape::REPLAY)?,
+            weights: WeightsSender::open(node)?,
+        })
+    }
+}
+
+/// What the trainer reports at exit.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Summary {
+    pub chunks_received: u64,
+    /// Chunks missing from the sequence numbers (overwritten before they were read).
+    pub chunks_lost: u64,
+    pub steps_received: u64,
+    pub buffered_sequences: usize,
+}
+
+pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
+    let waitset = create_waitset()?;
+    let replay_guard = waitset.attach_notification(ports.replay.listener())?;
+    let mut buffer = ReplayBuffer::new(cfg.replay_capacity);
+    let mut steps = 0u64;
+    let mut watchdog = Watchdog::from_env();
+    let mut last_log = Instant::now();
+    let mut failure = None;
+    while !shutdown.requested() && failure.is_none() {
+        let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+            if id.has_event_from(&replay_guard) {
+                let res = ports.replay.drain_events().and_then(|_| {
+                    ports.replay.for_each(|c| {
+                        steps += u64::from(c.len);
+                        buffer.push(c);
+                    })
+                });
+                if let Err(e) = res {
+                    failure = Some(e);
+                    return CallbackProgression::Stop;
+                }
+            }
+            CallbackProgression::Continue
+        };
+        waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
+        watchdog.pet();
+        if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
+            last_log = Instant::now();
+            tracing::info!(
+                chunks = buffer.received(),
+                lost = buffer.lost(),
+                buffered = buffer.len(),
+                "running"
+            );
+        }
+    }
+    if let Some(e) = failure {
+        return Err(e.into());
+    }
+    Ok(Summary {
+        chunks_received: buffer.received(),
+        chunks_lost: buffer.lost(),
+        steps_received: steps,
+        buffered_sequences: buffer.len(),
+    })
+}
