@@ -122,7 +122,7 @@ fn main() -> anyhow::Result<()> {
     let ports = service::Ports::open(&node)?;
     systemd::ready("simulator running");
     tracing::info!(namespace = %ipc.namespace, mode = ?cfg.mode, "simulator service started");
-    let summary = service::run(&ports, &mut world, &mut teacher, &cfg, &shutdown);
+    let summary = service::run(&node, &ports, &mut world, &mut teacher, &cfg, &shutdown);
     systemd::stopping();
     let summary = summary?;
     tracing::info!(

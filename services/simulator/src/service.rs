@@ -49,6 +49,8 @@ pub struct Summary {
     /// Steps driven by the teacher because no predictor was connected.
     pub teacher_steps: u64,
     pub replay_chunks_sent: u64,
+    /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
+    pub dead_nodes_cleaned: u64,
     /// Observation published -> its command received, as seen by the simulator.
     pub round_trip: LatencySummary,
     /// Wall time of one whole step (physics, sensors, publishing, waiting).
@@ -59,8 +61,12 @@ pub struct Summary {
     pub wall_seconds: f64,
 }
 
+/// Consecutive missed commands after which the simulator checks for a dead predictor.
+const MISSES_BEFORE_CLEANUP: u32 = 3;
+
 /// Runs until `cfg.max_steps` or a signal.
 pub fn run(
+    node: &Node<ipc::Service>,
     ports: &Ports,
     world: &mut World,
     teacher: &mut Teacher,
@@ -77,6 +83,7 @@ pub fn run(
     let mut chunk = ChunkBuilder::default();
     let mut watchdog = Watchdog::from_env();
     let mut last_cmd = [0.0f32; 2];
+    let mut consecutive_misses = 0u32;
     let start = Instant::now();
     let mut last_log = start;
     let mut step = 0u64;
@@ -96,6 +103,7 @@ pub fn run(
         };
         let cmd = match answer {
             Some(c) => {
+                consecutive_misses = 0;
                 if c.step == step {
                     summary.commands_received += 1;
                     round_trip.record_ns(stamp::elapsed_ns(obs_stamp));
@@ -108,6 +116,20 @@ pub fn run(
             }
             None => {
                 summary.missed_commands += 1;
+                consecutive_misses += 1;
+                if consecutive_misses >= MISSES_BEFORE_CLEANUP {
+                    // A predictor killed with SIGKILL still counts as connected until its node is
+                    // cleaned; without this every later step would wait the full timeout.
+                    consecutive_misses = 0;
+                    let cleaned = node.try_cleanup_dead_nodes().cleanups;
+                    if cleaned > 0 {
+                        tracing::warn!(
+                            cleaned,
+                            "predictor stopped answering: removed dead nodes; the teacher drives until one connects"
+                        );
+                    }
+                    summary.dead_nodes_cleaned += cleaned;
+                }
                 match cfg.on_missed_command {
                     MissPolicy::Teacher => teacher.act(&sensors),
                     MissPolicy::Stop => [0.0, 0.0],

@@ -1,0 +1,211 @@
+//! The three real binaries as separate processes over real iceoryx2 shared memory.
+
+use std::path::Path;
+use std::time::Duration;
+
+use mtanet_system_tests::*;
+
+const SIGTERM: i32 = libc::SIGTERM;
+const SIGKILL: i32 = libc::SIGKILL;
+
+fn arg(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+/// After a stack is gone: no node alive or dead, no shared memory left but the node counter.
+fn assert_namespace_clean(ns: &str) {
+    let c = nodes(ns);
+    assert!(
+        c.alive.is_empty() && c.dead.is_empty(),
+        "nodes left behind in {ns}: {c:?}"
+    );
+    let shm = leftover_shm(ns);
+    assert!(shm.is_empty(), "shared memory left behind in {ns}: {shm:?}");
+    remove_namespace_files(ns);
+}
+
+fn exit_ok(p: &mut Proc) {
+    let status = p.wait(Duration::from_secs(20));
+    assert!(
+        status.success(),
+        "{} exited with {status}; log:\n{}",
+        p.name,
+        p.log_tail()
+    );
+}
+
+#[test]
+fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("lk");
+    let (trs, prs, sis) = (
+        dir.path().join("trainer.json"),
+        dir.path().join("predictor.json"),
+        dir.path().join("sim.json"),
+    );
+    let mut trainer = Proc::spawn(
+        "mta-trainer",
+        &["--namespace", &ns, "--summary", arg(&trs)],
+        dir.path(),
+    );
+    let mut predictor = Proc::spawn(
+        "mta-predictor",
+        &["--namespace", &ns, "--summary", arg(&prs)],
+        dir.path(),
+    );
+    let c = wait_for_alive(&ns, 2, Duration::from_secs(30));
+    assert_eq!(
+        c.alive,
+        vec!["mta-predictor", "mta-trainer"],
+        "peers did not come up"
+    );
+
+    let mut sim = Proc::spawn(
+        "mta-simulator",
+        &[
+            "--namespace",
+            &ns,
+            "--max-steps",
+            "500",
+            "--expect-trainer",
+            "--summary",
+            arg(&sis),
+        ],
+        dir.path(),
+    );
+    let status = sim.wait(Duration::from_secs(120));
+    assert!(
+        status.success(),
+        "simulator failed: {status}\n{}",
+        sim.log_tail()
+    );
+    // The trainer may still be draining the last chunks; give it a moment before stopping.
+    std::thread::sleep(Duration::from_millis(300));
+    predictor.signal(SIGTERM);
+    trainer.signal(SIGTERM);
+    exit_ok(&mut predictor);
+    exit_ok(&mut trainer);
+
+    let s = read_json(&sis);
+    assert_eq!(s["steps"], 500);
+    assert_eq!(
+        s["commands_received"], 500,
+        "every step must get its own command: {s}"
+    );
+    assert_eq!(s["missed_commands"], 0, "{s}");
+    assert_eq!(s["teacher_steps"], 0, "{s}");
+    assert_eq!(s["replay_chunks_sent"], 25, "{s}");
+    assert!(s["round_trip"]["p50_us"].as_f64().unwrap() > 0.0, "{s}");
+    let p = read_json(&prs);
+    assert_eq!(p["commands_sent"], 500, "{p}");
+    assert_eq!(p["step_gaps"], 0, "{p}");
+    let t = read_json(&trs);
+    assert_eq!(
+        t["chunks_received"], 25,
+        "trainer must see every chunk: {t}"
+    );
+    assert_eq!(t["chunks_lost"], 0, "{t}");
+    assert_eq!(t["steps_received"], 500, "{t}");
+    assert_namespace_clean(&ns);
+}
+
+#[test]
+fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("kp");
+    let sis = dir.path().join("sim.json");
+    let p2s = dir.path().join("predictor2.json");
+    let mut trainer = Proc::spawn("mta-trainer", &["--namespace", &ns], dir.path());
+    let mut predictor = Proc::spawn("mta-predictor", &["--namespace", &ns], dir.path());
+    wait_for_alive(&ns, 2, Duration::from_secs(30));
+    let mut sim = Proc::spawn(
+        "mta-simulator",
+        &["--namespace", &ns, "--summary", arg(&sis)],
+        dir.path(),
+    );
+    std::thread::sleep(Duration::from_millis(800));
+
+    predictor.signal(SIGKILL);
+    predictor.wait(Duration::from_secs(5));
+    // The simulator notices the silence, cleans the dead node and lets the teacher drive.
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(
+        sim.is_running(),
+        "simulator died with its peer:\n{}",
+        sim.log_tail()
+    );
+    let dead = nodes(&ns).dead;
+    assert!(
+        dead.is_empty(),
+        "the simulator should have cleaned the dead predictor: {dead:?}"
+    );
+
+    let mut predictor2 = Proc::spawn(
+        "mta-predictor",
+        &["--namespace", &ns, "--summary", arg(&p2s)],
+        dir.path(),
+    );
+    std::thread::sleep(Duration::from_millis(1000));
+    for p in [&sim, &predictor2, &trainer] {
+        p.signal(SIGTERM);
+    }
+    exit_ok(&mut sim);
+    exit_ok(&mut predictor2);
+    exit_ok(&mut trainer);
+
+    let s = read_json(&sis);
+    assert!(
+        s["missed_commands"].as_u64().unwrap() >= 1,
+        "the kill must show as missed commands: {s}"
+    );
+    assert!(s["dead_nodes_cleaned"].as_u64().unwrap() >= 1, "{s}");
+    assert!(
+        s["teacher_steps"].as_u64().unwrap() > 0,
+        "the teacher drives while no predictor lives: {s}"
+    );
+    let p2 = read_json(&p2s);
+    assert!(
+        p2["commands_sent"].as_u64().unwrap() > 0,
+        "the replacement predictor must take over: {p2}"
+    );
+    assert_namespace_clean(&ns);
+}
+
+#[test]
+fn realtime_stack_stops_cleanly_on_sigterm() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("rt");
+    let sis = dir.path().join("sim.json");
+    let mut trainer = Proc::spawn("mta-trainer", &["--namespace", &ns], dir.path());
+    let mut predictor = Proc::spawn("mta-predictor", &["--namespace", &ns], dir.path());
+    wait_for_alive(&ns, 2, Duration::from_secs(30));
+    let mut sim = Proc::spawn(
+        "mta-simulator",
+        &[
+            "--namespace",
+            &ns,
+            "--mode",
+            "realtime",
+            "--summary",
+            arg(&sis),
+        ],
+        dir.path(),
+    );
+    std::thread::sleep(Duration::from_millis(1000));
+    for p in [&sim, &predictor, &trainer] {
+        p.signal(SIGTERM);
+    }
+    exit_ok(&mut sim);
+    exit_ok(&mut predictor);
+    exit_ok(&mut trainer);
+    let s = read_json(&sis);
+    let steps = s["steps"].as_u64().unwrap();
+    assert!(steps > 0, "{s}");
+    // Realtime paces at 50 Hz: ~1 s must not become thousands of steps.
+    assert!(
+        steps < 500,
+        "realtime mode ran unpaced: {steps} steps in ~1 s"
+    );
+    assert!(s["commands_received"].as_u64().unwrap() > 0, "{s}");
+    assert_namespace_clean(&ns);
+}
