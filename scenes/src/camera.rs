@@ -48,6 +48,27 @@ impl RayCamera {
         }
     }
 
+    /// Rotates the pixel rays into the world; returns the camera position.
+    pub(crate) fn update_rays<M: mujoco_rs::wrappers::mj_model::traits::ModelType>(
+        &mut self,
+        data: &MjData<M>,
+    ) -> [f64; 3] {
+        let m = data.cam_xmat()[self.cam_id];
+        for (w, c) in self.dirs_world.iter_mut().zip(&self.dirs_cam) {
+            // cam_xmat is row-major with the camera axes as columns: world = M * cam.
+            for (i, wi) in w.iter_mut().enumerate() {
+                *wi = m[3 * i] * c[0] + m[3 * i + 1] * c[1] + m[3 * i + 2] * c[2];
+            }
+        }
+        data.cam_xpos()[self.cam_id]
+    }
+
+    /// World directions of the pixel rays as of the last `update_rays`/`render`.
+    #[cfg(test)]
+    pub(crate) fn rays(&self) -> &[[f64; 3]] {
+        &self.dirs_world
+    }
+
     /// Renders into `out` (row-major, `IMAGE_HEIGHT` rows of `IMAGE_WIDTH`). `geom_grey[g]` is the
     /// grey of geom `g`; `groups` selects the geom groups the camera sees. Needs up-to-date
     /// kinematics (`cam_xpos`, `cam_xmat`).
@@ -58,14 +79,7 @@ impl RayCamera {
         geom_grey: &[f32],
         out: &mut [f32; IMAGE_PIXELS],
     ) {
-        let pos = data.cam_xpos()[self.cam_id];
-        let m = data.cam_xmat()[self.cam_id];
-        for (w, c) in self.dirs_world.iter_mut().zip(&self.dirs_cam) {
-            // cam_xmat is row-major with the camera axes as columns: world = M * cam.
-            for (i, wi) in w.iter_mut().enumerate() {
-                *wi = m[3 * i] * c[0] + m[3 * i + 1] * c[1] + m[3 * i + 2] * c[2];
-            }
-        }
+        let pos = self.update_rays(data);
         let (hits, _) = data.multi_ray(
             &pos,
             &self.dirs_world,

@@ -11,6 +11,7 @@
 pub mod camera;
 pub mod car;
 mod config;
+mod cull;
 pub mod mjcf;
 mod teacher;
 pub mod track;

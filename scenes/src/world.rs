@@ -5,6 +5,7 @@ use mujoco_rs::prelude::*;
 use crate::camera::{RayCamera, luminance};
 use crate::car::{self, names};
 use crate::config::{SceneConfig, SceneError};
+use crate::cull::LineCulling;
 use crate::mjcf::{self, FLOOR_GROUP, LINE_GROUP, MjcfOptions};
 use crate::track::Track;
 use crate::truth::{self, GroundTruth, LapCounter};
@@ -43,6 +44,7 @@ pub struct World {
     camera: RayCamera,
     side_cameras: Option<[RayCamera; 2]>,
     geom_grey: Vec<f32>,
+    culling: LineCulling,
     camera_groups: [u8; 6],
     line_groups: [u8; 6],
 }
@@ -107,6 +109,7 @@ impl World {
             None
         };
         let geom_grey = m.geom_rgba().iter().map(|&c| luminance(c)).collect();
+        let culling = LineCulling::new(m);
         let laps = LapCounter::new(track.length_m(), 0.0);
         let mut world = World {
             cfg: cfg.clone(),
@@ -121,6 +124,7 @@ impl World {
             camera,
             side_cameras,
             geom_grey,
+            culling,
             camera_groups: group_mask(&[FLOOR_GROUP, LINE_GROUP]),
             line_groups: group_mask(&[LINE_GROUP]),
         };
@@ -188,6 +192,8 @@ impl World {
 
     /// All sensors at the current state.
     pub fn sense(&mut self) -> Sensors {
+        let (x, y, _) = self.pose();
+        self.culling.update(&mut self.data, [x, y]);
         let mut image = [0.0; IMAGE_PIXELS];
         self.camera.render(
             &mut self.data,
@@ -230,6 +236,12 @@ impl World {
             on[k] = hit.is_some() && dist >= 0.0 && dist < 2.0 * car::SENSOR_HEIGHT_M;
         }
         on
+    }
+
+    /// Turns the culling of far line geoms off or on (default on). Images are the same either
+    /// way; this exists to test that and to measure what culling saves.
+    pub fn set_culling(&mut self, enabled: bool) {
+        self.culling.set_enabled(&mut self.data, enabled);
     }
 
     /// Position and heading of the car origin.
@@ -302,5 +314,40 @@ impl World {
         self.data.forward();
         let (s, _) = self.bar_on_track();
         self.laps = LapCounter::new(self.track.length_m(), s);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The culling radius must cover everything any camera can see on the floor, with margin
+    /// for the car rocking.
+    #[test]
+    fn cull_radius_covers_camera_footprint() {
+        let cfg = SceneConfig {
+            side_cameras: true,
+            ..SceneConfig::default()
+        };
+        let mut w = World::new(&cfg).unwrap();
+        let (x, y, _) = w.pose();
+        let mut cams = vec![w.camera.clone()];
+        cams.extend(w.side_cameras.clone().unwrap());
+        let mut far: f64 = 0.0;
+        for cam in &mut cams {
+            let p = cam.update_rays(&w.data);
+            for d in cam.rays() {
+                assert!(d[2] < 0.0, "a pixel ray points above the horizon: {d:?}");
+                let t = -p[2] / d[2];
+                let (hx, hy) = (p[0] + t * d[0], p[1] + t * d[1]);
+                far = far.max((hx - x).hypot(hy - y));
+            }
+        }
+        assert!(
+            far * 1.3 < crate::cull::CULL_RADIUS_M,
+            "cameras see {far:.3} m from the car, culling radius {} m",
+            crate::cull::CULL_RADIUS_M
+        );
+        w.reset();
     }
 }
