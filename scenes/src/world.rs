@@ -233,7 +233,8 @@ impl World {
                 None,
                 None,
             );
-            on[k] = hit.is_some() && dist >= 0.0 && dist < 2.0 * car::SENSOR_HEIGHT_M;
+            // The line's top is 1 cm below the site; anything farther is not under the sensor.
+            on[k] = hit.is_some() && (0.0..2.0 * car::SENSOR_HEIGHT_M).contains(&dist);
         }
         on
     }

@@ -86,16 +86,16 @@ pub(super) fn check(
         }
     }
 
-    if let Some((point, radius)) = tightest_bend(&points, &cum) {
-        if radius < MIN_BEND_RADIUS_M {
-            return Err(TrackError::TooTight {
-                path: path_buf(),
-                line: lines[point],
-                point,
-                radius_m: radius,
-                min_m: MIN_BEND_RADIUS_M,
-            });
-        }
+    if let Some((point, radius)) = tightest_bend(&points, &cum)
+        && radius < MIN_BEND_RADIUS_M
+    {
+        return Err(TrackError::TooTight {
+            path: path_buf(),
+            line: lines[point],
+            point,
+            radius_m: radius,
+            min_m: MIN_BEND_RADIUS_M,
+        });
     }
     Ok((points, lines))
 }

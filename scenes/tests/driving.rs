@@ -1,0 +1,155 @@
+//! The teacher drives every shipped track; laps are counted honestly.
+
+use mtanet_scenes::{
+    CONTROL_PERIOD_S, SceneConfig, Sensors, Teacher, TeacherConfig, World, shipped_track,
+};
+
+struct Run {
+    laps: u32,
+    max_abs_lateral: f64,
+    lateral_sq_sum: f64,
+    steps: usize,
+    commands: Vec<[f32; 2]>,
+}
+
+fn drive(track: &str, teacher: &TeacherConfig, seconds: f64) -> (World, Run) {
+    let mut w = World::new(&SceneConfig::default().with_track(shipped_track(track))).unwrap();
+    let mut t = Teacher::new(teacher);
+    let steps = (seconds / CONTROL_PERIOD_S).round() as usize;
+    let mut run = Run {
+        laps: 0,
+        max_abs_lateral: 0.0,
+        lateral_sq_sum: 0.0,
+        steps,
+        commands: Vec::with_capacity(steps),
+    };
+    let mut s: Sensors = w.sense();
+    for _ in 0..steps {
+        let cmd = t.act(&s);
+        run.commands.push(cmd);
+        assert!(w.step(cmd), "teacher produced a non-finite command {cmd:?}");
+        s = w.sense();
+        run.max_abs_lateral = run.max_abs_lateral.max(s.truth.lateral_m.abs());
+        run.lateral_sq_sum += s.truth.lateral_m * s.truth.lateral_m;
+    }
+    run.laps = s.truth.laps;
+    assert_eq!(w.rejected_commands(), 0);
+    (w, run)
+}
+
+#[test]
+fn teacher_does_two_laps_of_the_oval_in_60_s_without_leaving_the_line() {
+    let (w, run) = drive("oval", &TeacherConfig::default(), 60.0);
+    let half = w.track().line_width_m() / 2.0;
+    assert!(run.laps >= 2, "only {} laps in 60 s", run.laps);
+    assert!(
+        run.max_abs_lateral < half,
+        "left the line: max |lateral| {:.4} m >= {half} m",
+        run.max_abs_lateral
+    );
+    // Laps agree with the distance driven.
+    let expected = (w.progress_m() / w.track().length_m()).floor() as u32;
+    assert_eq!(run.laps, expected);
+    assert!((w.time_s() - 60.0).abs() < 1e-9, "time {}", w.time_s());
+}
+
+#[test]
+fn teacher_laps_every_shipped_track() {
+    for track in ["oval", "bends", "s_loop", "square"] {
+        let (w, run) = drive(track, &TeacherConfig::default(), 45.0);
+        let width = w.track().line_width_m();
+        assert!(
+            run.laps >= 1,
+            "{track}: no lap in 45 s (progress {:.2} m)",
+            w.progress_m()
+        );
+        // Near the line: the bar centre never farther than one line width from it.
+        assert!(
+            run.max_abs_lateral < width,
+            "{track}: max |lateral| {:.4} m",
+            run.max_abs_lateral
+        );
+    }
+}
+
+#[test]
+fn teacher_is_deterministic_and_noise_widens_the_data() {
+    let clean = TeacherConfig::default();
+    let noisy = TeacherConfig {
+        noise_std: 2.0,
+        seed: 7,
+        ..TeacherConfig::default()
+    };
+    let (_, a) = drive("oval", &noisy, 20.0);
+    let (_, b) = drive("oval", &noisy, 20.0);
+    assert_eq!(a.commands, b.commands, "same seed, different commands");
+    let (_, c) = drive(
+        "oval",
+        &TeacherConfig {
+            seed: 8,
+            ..noisy.clone()
+        },
+        20.0,
+    );
+    assert_ne!(a.commands, c.commands, "seed has no effect");
+    let (_, base) = drive("oval", &clean, 20.0);
+    let rms = |r: &Run| (r.lateral_sq_sum / r.steps as f64).sqrt();
+    assert!(
+        rms(&a) > 1.3 * rms(&base),
+        "noise did not widen the lateral spread: {:.4} vs {:.4}",
+        rms(&a),
+        rms(&base)
+    );
+    // Still a usable recording: the noisy car keeps following the track.
+    let (w, long) = drive("oval", &noisy, 60.0);
+    assert!(
+        long.laps >= 1,
+        "noisy teacher lost the track: {:.2} m",
+        w.progress_m()
+    );
+}
+
+#[test]
+fn backing_over_the_start_does_not_count_laps() {
+    let mut w = World::new(&SceneConfig::default()).unwrap();
+    // Reverse from the start for 3 s: the car crosses the start backwards.
+    for _ in 0..150 {
+        w.step([-6.0, -6.0]);
+    }
+    let s = w.sense();
+    assert!(w.progress_m() < -0.2, "progress {}", w.progress_m());
+    assert_eq!(s.truth.laps, 0);
+    assert!(
+        s.truth.track_s > w.track().length_m() - 0.5,
+        "{:?}",
+        s.truth
+    );
+    // Forward again across the start: still no lap.
+    for _ in 0..300 {
+        w.step([6.0, 6.0]);
+    }
+    assert!(w.progress_m() > 0.2);
+    assert_eq!(w.sense().truth.laps, 0);
+}
+
+#[test]
+fn lateral_sign_convention() {
+    // Positive lateral = the line is to the car's left.
+    let mut w = World::new(&SceneConfig::default()).unwrap();
+    w.set_pose(-0.2, -0.01, 0.0); // car right of the line (y = 0), heading +x
+    let t = w.sense().truth;
+    assert!(t.lateral_m > 0.009 && t.lateral_m < 0.011, "{t:?}");
+    assert!(t.on_line);
+    w.set_pose(-0.2, 0.02, 0.0);
+    let t = w.sense().truth;
+    assert!(t.lateral_m < -0.019 && !t.on_line, "{t:?}");
+    // Facing the other way, the same place flips the sign.
+    w.set_pose(-0.2, 0.02, std::f64::consts::PI);
+    assert!(w.sense().truth.lateral_m > 0.019);
+    let t = w.sense().truth;
+    assert!(
+        (t.x + 0.2).abs() < 1e-9 && (t.y - 0.02).abs() < 1e-9,
+        "{t:?}"
+    );
+    assert!((t.yaw.abs() - std::f64::consts::PI).abs() < 1e-9, "{t:?}");
+}
