@@ -32,7 +32,8 @@ pub enum SceneError {
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SceneConfig {
-    /// Track CSV (default: this crate's `tracks/oval.csv`).
+    /// Track CSV (default: this crate's `tracks/oval.csv`); a relative path is relative to the
+    /// working directory.
     pub track: PathBuf,
     /// MuJoCo time step, seconds.
     pub physics_timestep_s: f64,
@@ -104,7 +105,8 @@ impl SceneConfig {
     }
 }
 
-/// Resolves the shipped track names (`"oval"`) to paths; anything else is taken as a path.
+/// Path of a shipped track by name (`"oval"` -> `<crate>/tracks/oval.csv`); whether it exists is
+/// checked when it is loaded.
 pub fn shipped_track(name: &str) -> PathBuf {
     tracks_dir().join(format!("{name}.csv"))
 }

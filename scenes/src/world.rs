@@ -182,12 +182,10 @@ impl World {
         accepted
     }
 
-    /// Runs only the physics for one control period with the current command: the bare cost
-    /// of stepping, for benchmarks.
-    pub fn step_physics_only(&mut self) {
-        for _ in 0..self.substeps {
-            self.data.step();
-        }
+    /// One bare MuJoCo step (`mj_step`, one physics time step) with the command in force: no
+    /// sensors, no bookkeeping. For benchmarks; lap counting misses what happens here.
+    pub fn mj_step_bare(&mut self) {
+        self.data.step();
     }
 
     /// All sensors at the current state.
