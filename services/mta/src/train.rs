@@ -1,8 +1,316 @@
-//! `mta train`: offline training of MTA-PredNet from a dataset `.npz` (owned by the models work).
+//! `mta train`: offline training of MTA-PredNet from a dataset `.npz`.
+//!
+//! Writes into `--out`: `config.toml` (the effective run configuration), `train_log.csv` (every
+//! update), `epochs.jsonl` (held-out metrics per epoch), `checkpoint.safetensors` (latest, atomic),
+//! `model.safetensors` (final), `figure.png` (the paper's strip) and `metrics.json`.
+
+use anyhow::{Context, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use mtanet_models::analysis::{self, LayerSlowness};
+use mtanet_models::data::Dataset;
+use mtanet_models::eval::evaluate;
+use mtanet_models::figure::{DEFAULT_FRAMES, FigureInfo};
+use mtanet_models::{ModelConfig, TrainConfig, Trainer};
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
-pub struct TrainArgs {}
+pub struct TrainArgs {
+    /// Training data .npz (`images` [N,T,H,W] float32 in [0,1], `actions` [N,T,A] float32).
+    #[arg(long)]
+    data: PathBuf,
+    /// Held-out data .npz; without it `train.eval_fraction` of --data is held out.
+    #[arg(long)]
+    eval: Option<PathBuf>,
+    /// Passes over the training data.
+    #[arg(long, default_value_t = 20)]
+    epochs: u64,
+    /// Stop after this many updates even if epochs remain.
+    #[arg(long)]
+    max_updates: Option<u64>,
+    /// Run configuration TOML with optional `[model]` and `[train]` tables.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Output directory (created).
+    #[arg(long)]
+    out: PathBuf,
+    /// Frames drawn in figure.png (frames past the sequence's end are left out and reported).
+    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_FRAMES)]
+    frames: Vec<usize>,
+    /// Held-out sequence drawn in figure.png.
+    #[arg(long, default_value_t = 0)]
+    figure_sequence: i64,
+    /// Seed (overrides `train.seed`).
+    #[arg(long)]
+    seed: Option<u64>,
+}
 
-pub fn run(_args: TrainArgs) -> anyhow::Result<()> {
-    anyhow::bail!("mta train: not implemented yet")
+/// The `--config` file.
+#[derive(Debug, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct RunConfig {
+    model: ModelConfig,
+    train: TrainConfig,
+}
+
+#[derive(Serialize)]
+struct Metrics<'a> {
+    /// Held-out metrics of the final weights (mse, copy_last_mse, mean_frame_mse, mse_shuffled_actions, ...).
+    #[serde(flatten)]
+    eval: &'a mtanet_models::eval::EvalMetrics,
+    updates: u64,
+    refused_updates: u64,
+    epochs: u64,
+    wall_time_s: f64,
+    parameters: i64,
+    train_sequences: i64,
+    eval_sequences: i64,
+    slowness: Vec<LayerSlowness>,
+    /// The top layer's R has a longer PC autocorrelation time than the bottom's (the paper's claim).
+    top_slower_than_bottom: Option<bool>,
+    figure: Option<FigureInfo>,
+    model: &'a ModelConfig,
+    train: &'a TrainConfig,
+}
+
+pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+    // One intra-op thread: see mtanet_models' crate docs (2 shared cores, tiny ops).
+    tch::set_num_threads(1);
+    let mut run: RunConfig = match &args.config {
+        Some(p) => {
+            let text =
+                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            toml::from_str(&text).with_context(|| format!("parsing {}", p.display()))?
+        }
+        None => RunConfig::default(),
+    };
+    if let Some(s) = args.seed {
+        run.train.seed = s;
+    }
+    let data = Dataset::load_npz(&args.data)
+        .with_context(|| format!("loading training data {}", args.data.display()))?;
+    let (train, held) = match &args.eval {
+        Some(p) => (
+            data,
+            Dataset::load_npz(p).with_context(|| format!("loading eval data {}", p.display()))?,
+        ),
+        None if data.len() >= 2 => data.split(run.train.eval_fraction, run.train.seed),
+        None => bail!(
+            "{}: one sequence cannot be split into train and eval; pass --eval",
+            args.data.display()
+        ),
+    };
+    adopt_data_shape(&mut run.model, &train, &held)?;
+    run.model.validate().context("model configuration")?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let out = |name: &str| args.out.join(name);
+    std::fs::write(
+        out("config.toml"),
+        toml::to_string(&run).context("serialising config")?,
+    )?;
+
+    let mut trainer = Trainer::f_new(&run.model, &run.train).context("building the model")?;
+    let parameters: i64 = trainer
+        .vs
+        .trainable_variables()
+        .iter()
+        .map(|t| t.numel() as i64)
+        .sum();
+    let batches = (train.len() as u64).div_ceil(run.train.batch_size.max(1) as u64);
+    let windows = (train.steps() as u64).div_ceil(run.train.bptt.max(1) as u64);
+    let planned = (batches * windows * args.epochs).min(args.max_updates.unwrap_or(u64::MAX));
+    tracing::info!(
+        parameters,
+        train = ?train.images.size(),
+        eval = ?held.images.size(),
+        planned_updates = planned,
+        "training"
+    );
+    let bar = ProgressBar::new(planned).with_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} updates, eta {eta} {msg}",
+        )
+        .context("progress template")?,
+    );
+    let mut log = std::io::BufWriter::new(std::fs::File::create(out("train_log.csv"))?);
+    writeln!(log, "update,loss,grad_norm,clipped")?;
+    let mut epochs_log = std::fs::File::create(out("epochs.jsonl"))?;
+    let start = Instant::now();
+    let (mut last_loss, mut epochs_done) = (None, 0);
+    let mut io_error = None;
+    'epochs: for epoch in 0..args.epochs {
+        let mut stop = false;
+        let mut running = (0.0, 0u32);
+        trainer.fit_epoch(
+            &train,
+            run.train.seed.wrapping_mul(1_000_003).wrapping_add(epoch),
+            |r| match r {
+                Ok(s) => {
+                    running = (running.0 + s.loss, running.1 + 1);
+                    last_loss = Some(s.loss);
+                    if let Err(e) =
+                        writeln!(log, "{},{},{},{}", s.step, s.loss, s.grad_norm, s.clipped)
+                    {
+                        io_error.get_or_insert(e);
+                    }
+                    bar.inc(1);
+                    if running.1 == 20 {
+                        bar.set_message(format!("loss {:.5}", running.0 / 20.0));
+                        running = (0.0, 0);
+                    }
+                    stop |= args.max_updates.is_some_and(|m| s.step >= m);
+                }
+                Err(e) => bar.println(format!("warning: {e}")),
+            },
+        )?;
+        if let Some(e) = io_error.take() {
+            return Err(e).context("writing train_log.csv");
+        }
+        epochs_done = epoch + 1;
+        let m = evaluate(&trainer.model, &held, 64, None).context("evaluating")?;
+        let line = serde_json::json!({"epoch": epochs_done, "updates": trainer.step(), "loss": last_loss,
+            "mse": m.mse, "copy_last_mse": m.copy_last_mse, "mse_over_copy_last": m.mse_over_copy_last,
+            "wall_time_s": start.elapsed().as_secs_f64()});
+        writeln!(epochs_log, "{line}")?;
+        bar.println(format!(
+            "epoch {epochs_done}: {} updates, held-out mse {:.5} = {:.3} x copy-last",
+            trainer.step(),
+            m.mse,
+            m.mse_over_copy_last
+        ));
+        trainer
+            .save_checkpoint(&out("checkpoint.safetensors"), last_loss)
+            .context("saving checkpoint")?;
+        if stop {
+            break 'epochs;
+        }
+    }
+    log.flush()?;
+    bar.finish_with_message("done");
+    let wall_time_s = start.elapsed().as_secs_f64();
+    trainer
+        .save_checkpoint(&out("model.safetensors"), last_loss)
+        .context("saving model")?;
+
+    let eval = trainer.evaluate(&held).context("final evaluation")?;
+    let slowness = match analysis::slowness(&trainer.model, &held, 64, 5) {
+        Ok(s) => s,
+        Err(e) => {
+            tracing::warn!("slowness not measured: {e}");
+            Vec::new()
+        }
+    };
+    let top_slower_than_bottom = match (slowness.first(), slowness.last()) {
+        (Some(b), Some(t)) if slowness.len() > 1 => {
+            Some(t.r.pc_autocorr_time > b.r.pc_autocorr_time)
+        }
+        _ => None,
+    };
+    let figure = draw_figure(
+        &trainer,
+        &held,
+        &args.frames,
+        args.figure_sequence,
+        &out("figure.png"),
+    );
+    let metrics = Metrics {
+        eval: &eval,
+        updates: trainer.step(),
+        refused_updates: trainer.refused(),
+        epochs: epochs_done,
+        wall_time_s,
+        parameters,
+        train_sequences: train.len(),
+        eval_sequences: held.len(),
+        slowness,
+        top_slower_than_bottom,
+        figure,
+        model: &run.model,
+        train: &run.train,
+    };
+    std::fs::write(out("metrics.json"), serde_json::to_string_pretty(&metrics)?)?;
+    tracing::info!(
+        mse = eval.mse,
+        copy_last_mse = eval.copy_last_mse,
+        mse_shuffled_actions = ?eval.mse_shuffled_actions,
+        updates = trainer.step(),
+        wall_time_s,
+        out = %args.out.display(),
+        "training finished"
+    );
+    Ok(())
+}
+
+/// Image and action sizes come from the data; a config that says otherwise is overridden (with
+/// a warning), and train/eval sets must agree.
+fn adopt_data_shape(cfg: &mut ModelConfig, train: &Dataset, held: &Dataset) -> anyhow::Result<()> {
+    let (h, w) = train.image_size();
+    let a = train.action_dim();
+    if held.image_size() != (h, w) || held.action_dim() != a {
+        bail!(
+            "eval data has images {:?} and {} action values, training data {:?} and {a}",
+            held.image_size(),
+            held.action_dim(),
+            (h, w)
+        );
+    }
+    if (cfg.image_height, cfg.image_width, cfg.action_dim) != (h, w, a) {
+        tracing::info!(from_config = ?(cfg.image_height, cfg.image_width, cfg.action_dim), from_data = ?(h, w, a), "image/action sizes taken from the data");
+    }
+    (cfg.image_height, cfg.image_width, cfg.action_dim) = (h, w, a);
+    if cfg.action_offset.is_empty() && cfg.action_scale.is_empty() {
+        // Wheel velocities in rad/s would saturate the action MLP: normalise with the training
+        // data's statistics, stored in the model config (and so in every checkpoint).
+        let flat = train.actions.reshape([-1, a]);
+        let mean =
+            Vec::<f64>::try_from(flat.mean_dim([0i64].as_slice(), false, tch::Kind::Double))?;
+        let std = Vec::<f64>::try_from(flat.to_kind(tch::Kind::Double).std_dim(
+            [0i64].as_slice(),
+            false,
+            false,
+        ))?;
+        cfg.action_offset = mean;
+        cfg.action_scale = std
+            .iter()
+            .map(|s| if *s > 1e-6 { *s } else { 1.0 })
+            .collect();
+        tracing::info!(offset = ?cfg.action_offset, scale = ?cfg.action_scale, "action normalisation from the training data");
+    }
+    Ok(())
+}
+
+fn draw_figure(
+    trainer: &Trainer,
+    held: &Dataset,
+    frames: &[usize],
+    seq: i64,
+    path: &Path,
+) -> Option<FigureInfo> {
+    let seq = seq.clamp(0, held.len() - 1);
+    match analysis::figure_strip(
+        &trainer.model,
+        &held.images.get(seq),
+        &held.actions.get(seq),
+        frames,
+        path,
+    ) {
+        Ok(info) => {
+            if !info.frames_missing.is_empty() {
+                tracing::warn!(
+                    missing = ?info.frames_missing,
+                    steps = held.steps(),
+                    "figure: frames past the end of the {}-step sequence left out",
+                    held.steps()
+                );
+            }
+            Some(info)
+        }
+        Err(e) => {
+            tracing::warn!("figure not drawn: {e}");
+            None
+        }
+    }
 }

@@ -1,0 +1,400 @@
+//! Data sets: `images` float32 `[N, T, H, W]` in [0, 1] and `actions` float32 `[N, T, A]`, where
+//! `actions[:, t]` moved the world from frame t-1 to t, stored as a numpy `.npz`.
+
+use ndarray::{ArrayD, IxDyn};
+use ndarray_npy::{NpzReader, NpzWriter, ReadNpyError, ReadNpzError};
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use tch::{Kind, Tensor};
+
+/// Why a data set could not be read, written or accepted.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// The file could not be opened or created.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The file is not a readable zip/npz archive (truncated, corrupt, compressed without support).
+    #[error("{path}: not a readable .npz archive: {source}")]
+    Archive { path: PathBuf, source: ReadNpzError },
+    /// A required array is absent.
+    #[error("{path}: no array `{array}` (arrays present: {present:?})")]
+    Missing {
+        path: PathBuf,
+        array: &'static str,
+        present: Vec<String>,
+    },
+    /// An array is present but cannot be read as float32/float64.
+    #[error("{path}: array `{array}` is not readable as float32: {detail}")]
+    Dtype {
+        path: PathBuf,
+        array: &'static str,
+        detail: String,
+    },
+    /// Array shapes are wrong or disagree with each other.
+    #[error("{path}: {detail}")]
+    Shape { path: PathBuf, detail: String },
+    /// Values are NaN/inf, or images fall outside [0, 1].
+    #[error("{path}: array `{array}` {detail}")]
+    Values {
+        path: PathBuf,
+        array: &'static str,
+        detail: String,
+    },
+    /// Writing the archive failed.
+    #[error("{path}: cannot write npz: {detail}")]
+    Write { path: PathBuf, detail: String },
+}
+
+/// A set of N equally long sequences, held as CPU float32 tensors.
+#[derive(Debug)]
+pub struct Dataset {
+    /// `[N, T, H, W]` in [0, 1].
+    pub images: Tensor,
+    /// `[N, T, A]`.
+    pub actions: Tensor,
+}
+
+const MEMORY: &str = "<in memory>";
+
+impl Dataset {
+    /// Validates shapes, kinds and values; `images` may also be `[N, T, 1, H, W]`.
+    pub fn new(images: Tensor, actions: Tensor) -> Result<Self, DataError> {
+        Self::checked(images, actions, Path::new(MEMORY))
+    }
+
+    fn checked(images: Tensor, actions: Tensor, path: &Path) -> Result<Self, DataError> {
+        let shape = |detail: String| DataError::Shape {
+            path: path.to_owned(),
+            detail,
+        };
+        let (is, as_) = (images.size(), actions.size());
+        let images = match is.as_slice() {
+            [n, t, 1, h, w] => images.reshape([*n, *t, *h, *w]),
+            [_, _, _, _] => images,
+            _ => return Err(shape(format!("`images` must be [N, T, H, W], got {is:?}"))),
+        };
+        let is = images.size();
+        if as_.len() != 3 || as_[..2] != is[..2] {
+            return Err(shape(format!(
+                "`actions` must be [N, T, A] with N, T of images {is:?}, got {as_:?}"
+            )));
+        }
+        if is.iter().chain(&as_).any(|&d| d == 0) {
+            return Err(shape(format!(
+                "empty data set: images {is:?}, actions {as_:?}"
+            )));
+        }
+        if is[1] < 2 {
+            return Err(shape(format!(
+                "sequences need at least 2 steps for next-frame prediction, got {}",
+                is[1]
+            )));
+        }
+        let images = images.to_kind(Kind::Float).contiguous();
+        let actions = actions.to_kind(Kind::Float).contiguous();
+        let values = |array, detail: String| DataError::Values {
+            path: path.to_owned(),
+            array,
+            detail,
+        };
+        for (name, t) in [("images", &images), ("actions", &actions)] {
+            let bad = t.isfinite().logical_not().sum(Kind::Int64).int64_value(&[]);
+            if bad > 0 {
+                return Err(values(name, format!("has {bad} NaN/inf values")));
+            }
+        }
+        let (lo, hi) = (
+            images.min().double_value(&[]),
+            images.max().double_value(&[]),
+        );
+        if lo < 0.0 || hi > 1.0 {
+            return Err(values(
+                "images",
+                format!("must lie in [0, 1], found [{lo}, {hi}] (uint8 frames need / 255)"),
+            ));
+        }
+        Ok(Self { images, actions })
+    }
+
+    /// Reads `images` and `actions` (float32, or float64 converted) from a numpy `.npz`.
+    pub fn load_npz(path: impl AsRef<Path>) -> Result<Self, DataError> {
+        let path = path.as_ref();
+        let file = File::open(path).map_err(|source| DataError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let mut npz = NpzReader::new(file).map_err(|source| DataError::Archive {
+            path: path.to_owned(),
+            source,
+        })?;
+        let names = npz.names().map_err(|source| DataError::Archive {
+            path: path.to_owned(),
+            source,
+        })?;
+        let images = read_array(&mut npz, &names, path, "images")?;
+        let actions = read_array(&mut npz, &names, path, "actions")?;
+        Self::checked(images, actions, path)
+    }
+
+    /// Writes `images` and `actions` as float32 arrays, uncompressed (numpy `np.savez` layout),
+    /// through a temporary file and a rename so that a crash never leaves a partial file.
+    pub fn save_npz(&self, path: impl AsRef<Path>) -> Result<(), DataError> {
+        let path = path.as_ref();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+        let result = self.write_npz(&tmp).and_then(|()| {
+            std::fs::rename(&tmp, path).map_err(|source| DataError::Io {
+                path: path.to_owned(),
+                source,
+            })
+        });
+        if result.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        result
+    }
+
+    fn write_npz(&self, path: &Path) -> Result<(), DataError> {
+        let write = |detail: String| DataError::Write {
+            path: path.to_owned(),
+            detail,
+        };
+        let file = File::create(path).map_err(|source| DataError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let mut npz = NpzWriter::new(file);
+        for (name, t) in [("images", &self.images), ("actions", &self.actions)] {
+            let data = Vec::<f32>::try_from(t.flatten(0, -1)).map_err(|e| write(e.to_string()))?;
+            let dims: Vec<usize> = t.size().iter().map(|&d| d as usize).collect();
+            let array =
+                ArrayD::from_shape_vec(IxDyn(&dims), data).map_err(|e| write(e.to_string()))?;
+            npz.add_array(name, &array)
+                .map_err(|e| write(e.to_string()))?;
+        }
+        npz.finish().map_err(|e| write(e.to_string()))?;
+        Ok(())
+    }
+
+    /// Number of sequences N.
+    pub fn len(&self) -> i64 {
+        self.images.size()[0]
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Steps per sequence T.
+    pub fn steps(&self) -> i64 {
+        self.images.size()[1]
+    }
+
+    /// (H, W).
+    pub fn image_size(&self) -> (i64, i64) {
+        let s = self.images.size();
+        (s[2], s[3])
+    }
+
+    pub fn action_dim(&self) -> i64 {
+        self.actions.size()[2]
+    }
+
+    /// The sequences at `index` (a list of sequence numbers).
+    pub fn select(&self, index: &[i64]) -> Dataset {
+        let idx = Tensor::from_slice(index);
+        Dataset {
+            images: self.images.index_select(0, &idx),
+            actions: self.actions.index_select(0, &idx),
+        }
+    }
+
+    /// Seeded split into (train, held-out) with `ceil(fraction * N)` held-out sequences (at least
+    /// one, and at least one left for training when N >= 2).
+    pub fn split(&self, fraction: f64, seed: u64) -> (Dataset, Dataset) {
+        let n = self.len();
+        let mut order: Vec<i64> = (0..n).collect();
+        order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
+        let held = ((fraction * n as f64).ceil() as i64).clamp(1, (n - 1).max(1));
+        let (eval, train) = order.split_at(held as usize);
+        (self.select(train), self.select(eval))
+    }
+
+    /// The same images with each sequence's actions taken from another sequence (a seeded
+    /// derangement: nobody keeps their own). With a single sequence the actions are reversed in
+    /// time instead. Used to prove that the model uses the action.
+    pub fn shuffled_actions(&self, seed: u64) -> Tensor {
+        let n = self.len();
+        if n < 2 {
+            return self.actions.flip([1]);
+        }
+        let mut order: Vec<i64> = (0..n).collect();
+        order.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
+        // Cycle along the shuffled order: sequence order[i] gets the actions of order[i + 1].
+        let mut source = vec![0i64; n as usize];
+        for i in 0..n as usize {
+            source[order[i] as usize] = order[(i + 1) % n as usize];
+        }
+        self.actions.index_select(0, &Tensor::from_slice(&source))
+    }
+}
+
+fn read_array(
+    npz: &mut NpzReader<File>,
+    names: &[String],
+    path: &Path,
+    array: &'static str,
+) -> Result<Tensor, DataError> {
+    if !names.iter().any(|n| n == array) {
+        return Err(DataError::Missing {
+            path: path.to_owned(),
+            array,
+            present: names.to_vec(),
+        });
+    }
+    let dtype = |detail: String| DataError::Dtype {
+        path: path.to_owned(),
+        array,
+        detail,
+    };
+    let result: Result<ArrayD<f32>, ReadNpzError> = npz.by_name(array);
+    let data = match result {
+        Ok(a) => a,
+        Err(ReadNpzError::Npy(ReadNpyError::WrongDescriptor(d))) => {
+            // float64 writers (numpy's default) are common: accept and narrow.
+            let a: ArrayD<f64> = npz
+                .by_name(array)
+                .map_err(|_| dtype(format!("descriptor {d}")))?;
+            a.mapv(|v| v as f32)
+        }
+        Err(source @ ReadNpzError::Zip(_)) => {
+            return Err(DataError::Archive {
+                path: path.to_owned(),
+                source,
+            });
+        }
+        Err(e) => return Err(dtype(e.to_string())),
+    };
+    let dims: Vec<i64> = data.shape().iter().map(|&d| d as i64).collect();
+    let data = data.as_standard_layout();
+    let slice = data
+        .as_slice()
+        .ok_or_else(|| dtype("not contiguous after relayout".into()))?;
+    Ok(Tensor::from_slice(slice).reshape(dims))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiny() -> Dataset {
+        let images = Tensor::rand([3, 4, 8, 12], (Kind::Float, tch::Device::Cpu));
+        let actions = Tensor::randn([3, 4, 2], (Kind::Float, tch::Device::Cpu));
+        Dataset::new(images, actions).unwrap()
+    }
+
+    #[test]
+    fn npz_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.npz");
+        let d = tiny();
+        d.save_npz(&path).unwrap();
+        let back = Dataset::load_npz(&path).unwrap();
+        assert!(back.images.equal(&d.images) && back.actions.equal(&d.actions));
+        assert_eq!(
+            (
+                back.len(),
+                back.steps(),
+                back.image_size(),
+                back.action_dim()
+            ),
+            (3, 4, (8, 12), 2)
+        );
+    }
+
+    #[test]
+    fn bad_files_say_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.npz");
+        tiny().save_npz(&path).unwrap();
+        // Truncated archive.
+        let bytes = std::fs::read(&path).unwrap();
+        let cut = dir.path().join("cut.npz");
+        std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+        let e = Dataset::load_npz(&cut).unwrap_err().to_string();
+        assert!(e.contains("cut.npz"), "{e}");
+        // Missing array.
+        let only = dir.path().join("only.npz");
+        let mut w = NpzWriter::new(File::create(&only).unwrap());
+        w.add_array("images", &ArrayD::<f32>::zeros(IxDyn(&[1, 2, 8, 12])))
+            .unwrap();
+        w.finish().unwrap();
+        let e = Dataset::load_npz(&only).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DataError::Missing {
+                    array: "actions",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("images"),
+            "lists what is present: {e}"
+        );
+        // Out of range images.
+        let big = Tensor::ones([1, 2, 8, 12], (Kind::Float, tch::Device::Cpu)) * 255.0;
+        let e = Dataset::new(
+            big,
+            Tensor::zeros([1, 2, 2], (Kind::Float, tch::Device::Cpu)),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("[0, 1]"), "{e}");
+        // Mismatched N.
+        let e = Dataset::new(
+            tiny().images,
+            Tensor::zeros([2, 4, 2], (Kind::Float, tch::Device::Cpu)),
+        )
+        .unwrap_err();
+        assert!(matches!(e, DataError::Shape { .. }), "{e}");
+    }
+
+    #[test]
+    fn shuffled_actions_is_a_derangement() {
+        let n = 7;
+        let actions = Tensor::arange(n, (Kind::Float, tch::Device::Cpu))
+            .view([n, 1, 1])
+            .expand([n, 3, 2], false);
+        let d = Dataset::new(
+            Tensor::zeros([n, 3, 8, 12], (Kind::Float, tch::Device::Cpu)),
+            actions,
+        )
+        .unwrap();
+        let s = d.shuffled_actions(5);
+        let firsts = Vec::<f32>::try_from(s.select(1, 0).select(1, 0)).unwrap();
+        let mut sorted = firsts.clone();
+        sorted.sort_by(f32::total_cmp);
+        assert_eq!(
+            sorted,
+            (0..n).map(|i| i as f32).collect::<Vec<_>>(),
+            "a permutation"
+        );
+        assert!(
+            firsts.iter().enumerate().all(|(i, v)| *v != i as f32),
+            "no fixed point: {firsts:?}"
+        );
+        let (train, eval) = d.split(0.2, 1);
+        assert_eq!((train.len(), eval.len()), (5, 2));
+    }
+}

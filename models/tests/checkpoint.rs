@@ -1,0 +1,225 @@
+//! Checkpoints: exact round trips (in this process and another), atomic writes, and clear
+//! refusals that leave the target model untouched.
+
+use mtanet_models::checkpoint::{self, CheckpointError, Meta};
+use mtanet_models::{ModelConfig, MtaPredNet};
+use std::process::Command;
+use tch::{Device, Kind, Tensor, nn::VarStore};
+
+fn small() -> ModelConfig {
+    ModelConfig {
+        channels: vec![4, 6, 8],
+        a_channels: vec![1, 4, 6],
+        ..Default::default()
+    }
+}
+
+fn model(cfg: &ModelConfig, seed: i64) -> (VarStore, MtaPredNet) {
+    tch::set_num_threads(1);
+    tch::manual_seed(seed);
+    let vs = VarStore::new(Device::Cpu);
+    let m = MtaPredNet::new(&vs.root(), cfg);
+    (vs, m)
+}
+
+fn same_weights(a: &VarStore, b: &VarStore) -> bool {
+    let (a, b) = (a.variables(), b.variables());
+    a.len() == b.len() && a.iter().all(|(n, t)| b.get(n).is_some_and(|u| u.equal(t)))
+}
+
+/// A fixed input's prediction, to compare behaviour and not only tensors.
+fn probe(m: &MtaPredNet) -> Tensor {
+    let _g = tch::no_grad_guard();
+    let frames = Tensor::linspace(0.0, 1.0, 3 * 96, (Kind::Float, Device::Cpu)).view([1, 3, 8, 12]);
+    let actions = Tensor::linspace(-1.0, 1.0, 6, (Kind::Float, Device::Cpu)).view([1, 3, 2]);
+    m.forward_sequence(&frames, &actions).predictions
+}
+
+#[test]
+fn round_trip_restores_weights_config_and_meta() {
+    let cfg = small();
+    let (vs, m) = model(&cfg, 1);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.safetensors");
+    let meta = Meta::new(1234, Some(0.0125));
+    checkpoint::save(&path, &vs, &cfg, &meta).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    // (No assert_eq: a failure would print megabytes.)
+    assert!(
+        bytes == checkpoint::to_bytes(&vs, &cfg, &meta).unwrap(),
+        "the bytes form is the file"
+    );
+
+    let (mut other, m2) = model(&cfg, 2);
+    assert!(!same_weights(&vs, &other));
+    let got = checkpoint::load_into(&path, &mut other, &cfg).unwrap();
+    assert_eq!(got, meta);
+    assert!(same_weights(&vs, &other));
+    assert!(
+        probe(&m).equal(&probe(&m2)),
+        "same weights, same predictions"
+    );
+
+    let ck = checkpoint::from_bytes(&bytes).unwrap();
+    assert_eq!(
+        (ck.config.clone(), ck.meta.step, ck.meta.schema_version),
+        (cfg, 1234, checkpoint::SCHEMA_VERSION)
+    );
+    let (built, m3) = ck.build().unwrap();
+    assert!(same_weights(&vs, &built));
+    assert!(probe(&m).equal(&probe(&m3)));
+    // Atomic write: no temporary file is left behind.
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "{names:?}");
+}
+
+#[test]
+fn config_mismatch_names_the_keys() {
+    let (vs, _m) = model(&small(), 1);
+    let bytes = checkpoint::to_bytes(&vs, &small(), &Meta::new(1, None)).unwrap();
+    let other_cfg = ModelConfig {
+        gus: vec![3, 2, 2],
+        tau: vec![1.0, 1.5, 2.0],
+        ..small()
+    };
+    let (mut other, _m) = model(&other_cfg, 2);
+    let before = other.variables()["layer0.gu0.conv.weight"].copy();
+    let err = checkpoint::load_bytes_into(&bytes, &mut other, &other_cfg).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        matches!(err, CheckpointError::Config(ref d) if d.len() == 2),
+        "{text}"
+    );
+    assert!(text.contains("gus") && text.contains("tau"), "{text}");
+    assert!(
+        other.variables()["layer0.gu0.conv.weight"].equal(&before),
+        "nothing loaded"
+    );
+}
+
+#[test]
+fn tensor_mismatches_are_listed_and_nothing_is_loaded() {
+    let cfg = small();
+    let (vs, _m) = model(&cfg, 1);
+    let bytes = checkpoint::to_bytes(&vs, &cfg, &Meta::new(1, None)).unwrap();
+    let mut ck = checkpoint::from_bytes(&bytes).unwrap();
+    ck.tensors.remove("layer1.xhat.bias");
+    ck.tensors.insert(
+        "layer0.gu0.conv.weight".into(),
+        Tensor::zeros([3, 3], (Kind::Float, Device::Cpu)),
+    );
+    ck.tensors.insert(
+        "layer2.xhat.weight".into(),
+        ck.tensors["layer2.xhat.weight"].to_kind(Kind::Double),
+    );
+    ck.tensors.insert(
+        "layer9.extra".into(),
+        Tensor::zeros([1], (Kind::Float, Device::Cpu)),
+    );
+    let (mut other, _m) = model(&cfg, 2);
+    let before: Vec<Tensor> = ["layer0.gu1.conv.weight", "layer1.gu0.conv.bias"]
+        .iter()
+        .map(|n| other.variables()[*n].copy())
+        .collect();
+    let err = ck.apply(&mut other, &cfg).unwrap_err();
+    let CheckpointError::Tensors(problems) = &err else {
+        panic!("{err}")
+    };
+    let text = problems.join("\n");
+    assert_eq!(problems.len(), 4, "{text}");
+    for needle in [
+        "missing `layer1.xhat.bias`",
+        "`layer0.gu0.conv.weight` shape [3, 3]",
+        "`layer2.xhat.weight` dtype Double",
+        "unexpected `layer9.extra`",
+    ] {
+        assert!(text.contains(needle), "no `{needle}` in:\n{text}");
+    }
+    for (n, b) in ["layer0.gu1.conv.weight", "layer1.gu0.conv.bias"]
+        .iter()
+        .zip(&before)
+    {
+        assert!(
+            other.variables()[*n].equal(b),
+            "{n} was loaded from a rejected checkpoint"
+        );
+    }
+}
+
+#[test]
+fn truncated_or_damaged_files_are_clear_errors() {
+    let cfg = small();
+    let (vs, _m) = model(&cfg, 1);
+    let bytes = checkpoint::to_bytes(&vs, &cfg, &Meta::new(7, Some(1.0))).unwrap();
+    let (mut target, _m) = model(&cfg, 3);
+    let before = target.variables()["layer0.xhat.weight"].copy();
+    for cut in [0, 5, 100, bytes.len() / 2, bytes.len() - 1] {
+        let err = checkpoint::load_bytes_into(&bytes[..cut], &mut target, &cfg).unwrap_err();
+        assert!(
+            matches!(err, CheckpointError::Corrupt(_)),
+            "cut at {cut}: {err}"
+        );
+        assert!(err.to_string().contains("truncated or corrupt"), "{err}");
+    }
+    let mut flipped = bytes.clone();
+    let n = flipped.len();
+    flipped[n - 10] ^= 0x40; // inside the last tensor's data
+    let err = checkpoint::load_bytes_into(&flipped, &mut target, &cfg).unwrap_err();
+    assert!(matches!(err, CheckpointError::Checksum { .. }), "{err}");
+    let mut header = bytes.clone();
+    header[9] = b'!'; // the header JSON's first bytes
+    assert!(checkpoint::load_bytes_into(&header, &mut target, &cfg).is_err());
+    assert!(
+        target.variables()["layer0.xhat.weight"].equal(&before),
+        "a failed load changed the model"
+    );
+    // A plain safetensors file (tch's VarStore::save) is not mistaken for a checkpoint.
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain.safetensors");
+    vs.save(&plain).unwrap();
+    let err = checkpoint::load(&plain).unwrap_err();
+    assert!(matches!(err, CheckpointError::NotCheckpoint(_)), "{err}");
+    let err = checkpoint::load(dir.path().join("absent.safetensors")).unwrap_err();
+    assert!(err.to_string().contains("absent.safetensors"), "{err}");
+}
+
+/// Child half of `another_process_loads_the_file`: prints the probe's sum.
+#[test]
+fn child_probe() {
+    let Ok(path) = std::env::var("MTANET_CHECKPOINT_CHILD") else {
+        return;
+    };
+    let ck = checkpoint::load(&path).expect("child load");
+    let (_vs, m) = ck.build().expect("child build");
+    println!("PROBE={:.9}", probe(&m).sum(Kind::Double).double_value(&[]));
+}
+
+#[test]
+fn another_process_loads_the_file() {
+    let cfg = small();
+    let (vs, m) = model(&cfg, 5);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.safetensors");
+    checkpoint::save(&path, &vs, &cfg, &Meta::new(1, None)).unwrap();
+    let out = Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child_probe", "--nocapture", "--test-threads=1"])
+        .env("MTANET_CHECKPOINT_CHILD", &path)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "child failed: {stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = stdout
+        .lines()
+        .find_map(|l| l.split("PROBE=").nth(1))
+        .map(str::trim)
+        .unwrap_or_else(|| panic!("child printed no probe:\n{stdout}"));
+    let want = format!("{:.9}", probe(&m).sum(Kind::Double).double_value(&[]));
+    assert_eq!(line, want);
+}
