@@ -43,6 +43,9 @@ pub struct SceneConfig {
     pub max_wheel_speed: f64,
     /// Also render the left and right cameras.
     pub side_cameras: bool,
+    /// Where the car starts (and `reset` returns to): arc length along the track, metres,
+    /// wrapped into the track; the sensor bar sits on the line there, heading along it.
+    pub start_s_m: f64,
 }
 
 impl Default for SceneConfig {
@@ -53,6 +56,7 @@ impl Default for SceneConfig {
             control_period_s: CONTROL_PERIOD_S,
             max_wheel_speed: 20.0,
             side_cameras: false,
+            start_s_m: 0.0,
         }
     }
 }
@@ -100,6 +104,12 @@ impl SceneConfig {
         let ms = self.max_wheel_speed;
         if !(ms.is_finite() && ms > 0.0 && ms <= 200.0) {
             return bad("max_wheel_speed", format!("= {ms}, expected in (0, 200]"));
+        }
+        if !self.start_s_m.is_finite() {
+            return bad(
+                "start_s_m",
+                format!("= {}, expected a finite arc length", self.start_s_m),
+            );
         }
         Ok(ratio.round() as u32)
     }

@@ -24,15 +24,32 @@ const LINE_HALF_THICKNESS_M: f64 = 0.0005;
 pub struct MjcfOptions {
     pub timestep_s: f64,
     pub max_wheel_speed: f64,
+    /// Arc length along the track where the car starts.
+    pub start_s_m: f64,
 }
 
-/// Where the car starts: its sensor bar on the first waypoint, heading along the first segment,
-/// so the middle sensor sees the line from the first step.
-pub fn start_pose(track: &Track) -> ([f64; 2], f64) {
-    let (p, heading) = track.pose_at(0.0);
-    let (s, c) = heading.sin_cos();
-    let origin = [p[0] - car::SENSOR_X_M * c, p[1] - car::SENSOR_X_M * s];
-    (origin, heading)
+/// Car origin and heading that put the sensor-bar centre at arc length `s_m`, `lateral_m` off
+/// the line (same sign as `GroundTruth::lateral_m`: positive = line to the car's left), heading
+/// along the line turned by `yaw_offset` (radians, left positive).
+pub fn pose_on_track(track: &Track, s_m: f64, lateral_m: f64, yaw_offset: f64) -> ([f64; 2], f64) {
+    let (p, heading) = track.pose_at(s_m);
+    // The car sits right of the line for a positive lateral, i.e. along -left_normal.
+    let bar = [
+        p[0] + lateral_m * heading.sin(),
+        p[1] - lateral_m * heading.cos(),
+    ];
+    let yaw = heading + yaw_offset;
+    let (s, c) = yaw.sin_cos();
+    (
+        [bar[0] - car::SENSOR_X_M * c, bar[1] - car::SENSOR_X_M * s],
+        yaw,
+    )
+}
+
+/// Where the car starts: its sensor bar on the line at `start_s_m`, heading along it, so the
+/// middle sensor sees the line from the first step.
+pub fn start_pose(track: &Track, start_s_m: f64) -> ([f64; 2], f64) {
+    pose_on_track(track, start_s_m, 0.0, 0.0)
 }
 
 /// The whole scene as an MJCF string.
@@ -76,7 +93,7 @@ pub fn scene(track: &Track, opts: &MjcfOptions) -> String {
             track.line_width_m() / 2.0,
         );
     }
-    let (origin, yaw) = start_pose(track);
+    let (origin, yaw) = start_pose(track, opts.start_s_m);
     car::write_body(&mut out, origin, yaw);
     out.push_str("  </worldbody>\n");
     car::write_actuators_and_sensors(&mut out, opts.max_wheel_speed);

@@ -60,6 +60,7 @@ impl World {
             &MjcfOptions {
                 timestep_s: cfg.physics_timestep_s,
                 max_wheel_speed: cfg.max_wheel_speed,
+                start_s_m: cfg.start_s_m,
             },
         );
         let model = MjModel::from_xml_string(&mjcf).map_err(|e| SceneError::Compile {
@@ -303,6 +304,14 @@ impl World {
         self.data.forward();
         let (s, _) = self.bar_on_track();
         self.laps.reanchor(s);
+    }
+
+    /// Puts the car at rest with its sensor bar at arc length `s_m` of the track, `lateral_m`
+    /// off the line (sign as `GroundTruth::lateral_m`) and heading along the line turned by
+    /// `yaw_offset` radians (left positive). Same bookkeeping as `set_pose`.
+    pub fn place_on_track(&mut self, s_m: f64, lateral_m: f64, yaw_offset: f64) {
+        let (p, yaw) = mjcf::pose_on_track(&self.track, s_m, lateral_m, yaw_offset);
+        self.set_pose(p[0], p[1], yaw);
     }
 
     /// Back to the start pose at rest, time 0, command 0, lap count 0.

@@ -153,3 +153,40 @@ fn lateral_sign_convention() {
     );
     assert!((t.yaw.abs() - std::f64::consts::PI).abs() < 1e-9, "{t:?}");
 }
+
+#[test]
+fn place_on_track_and_start_anywhere() {
+    let mut w = World::new(&SceneConfig::default().with_track(shipped_track("s_loop"))).unwrap();
+    let len = w.track().length_m();
+    for k in 0..20 {
+        let s_m = len * k as f64 / 20.0;
+        let lat = 0.01 * ((k % 5) as f64 - 2.0);
+        w.place_on_track(s_m, lat, 0.0);
+        let t = w.sense().truth;
+        let ds = (t.track_s - s_m + len / 2.0).rem_euclid(len) - len / 2.0;
+        assert!(ds.abs() < 0.01, "s {s_m}: truth {t:?}");
+        assert!(
+            (t.lateral_m - lat).abs() < 2e-3,
+            "lateral {lat}: truth {t:?}"
+        );
+    }
+    // A world configured to start half way round starts there, on the line, and laps from there.
+    let cfg = SceneConfig {
+        start_s_m: len / 2.0,
+        ..SceneConfig::default().with_track(shipped_track("s_loop"))
+    };
+    let mut w = World::new(&cfg).unwrap();
+    let s = w.sense();
+    assert!((s.truth.track_s - len / 2.0).abs() < 1e-6, "{:?}", s.truth);
+    assert_eq!(s.line, [false, true, false]);
+    let mut t = Teacher::new(&TeacherConfig::default());
+    let mut s = s;
+    for _ in 0..2000 {
+        let c = t.act(&s);
+        w.step(c);
+        s = w.sense();
+    }
+    assert!(s.truth.laps >= 1, "progress {}", w.progress_m());
+    w.reset();
+    assert!((w.sense().truth.track_s - len / 2.0).abs() < 1e-6);
+}
