@@ -21,28 +21,39 @@ pub fn luminance(rgba: [f32; 4]) -> f32 {
 #[derive(Debug, Clone)]
 pub struct RayCamera {
     cam_id: usize,
+    /// Rays per pixel = supersample^2, on a regular sub-grid; 1 = through the pixel centre.
+    supersample: usize,
     dirs_cam: Vec<[f64; 3]>,
     dirs_world: Vec<[f64; 3]>,
 }
 
 impl RayCamera {
     /// `fovy_deg` is the vertical field of view; pixels are square, so the horizontal one
-    /// follows from the 12:8 aspect.
-    pub fn new(cam_id: usize, fovy_deg: f64) -> Self {
+    /// follows from the 12:8 aspect. `supersample` n casts n x n rays per pixel and averages
+    /// them (edges of the line then get intermediate greys); 1 casts one ray through the centre.
+    pub fn new(cam_id: usize, fovy_deg: f64, supersample: usize) -> Self {
+        let n = supersample.max(1);
         let ty = (fovy_deg.to_radians() / 2.0).tan();
         let tx = ty * IMAGE_WIDTH as f64 / IMAGE_HEIGHT as f64;
-        let mut dirs_cam = Vec::with_capacity(IMAGE_PIXELS);
+        let mut dirs_cam = Vec::with_capacity(IMAGE_PIXELS * n * n);
+        // Offsets of the sub-rays inside a pixel, in pixel units: (k + 0.5) / n.
+        let sub = |k: usize| (k as f64 + 0.5) / n as f64;
         for row in 0..IMAGE_HEIGHT {
-            // Row 0 is the top of the image (+y in the camera frame), i.e. farthest ahead.
-            let v = 1.0 - 2.0 * (row as f64 + 0.5) / IMAGE_HEIGHT as f64;
             for col in 0..IMAGE_WIDTH {
-                // Column 0 is the image's left (-x in the camera frame), i.e. the car's left.
-                let u = -1.0 + 2.0 * (col as f64 + 0.5) / IMAGE_WIDTH as f64;
-                dirs_cam.push([u * tx, v * ty, -1.0]);
+                for i in 0..n {
+                    // Row 0 is the top of the image (+y in the camera frame): farthest ahead.
+                    let v = 1.0 - 2.0 * (row as f64 + sub(i)) / IMAGE_HEIGHT as f64;
+                    for j in 0..n {
+                        // Column 0 is the image's left (-x in the camera frame): the car's left.
+                        let u = -1.0 + 2.0 * (col as f64 + sub(j)) / IMAGE_WIDTH as f64;
+                        dirs_cam.push([u * tx, v * ty, -1.0]);
+                    }
+                }
             }
         }
         RayCamera {
             cam_id,
+            supersample: n,
             dirs_world: dirs_cam.clone(),
             dirs_cam,
         }
@@ -89,11 +100,14 @@ impl RayCamera {
             MAX_RAY_M,
             None,
         );
-        for (px, hit) in out.iter_mut().zip(hits) {
-            *px = match hit {
-                Some(g) => geom_grey.get(g).copied().unwrap_or(BACKGROUND_GREY),
-                None => BACKGROUND_GREY,
-            };
+        let grey = |hit: &Option<usize>| match hit {
+            Some(g) => geom_grey.get(*g).copied().unwrap_or(BACKGROUND_GREY),
+            None => BACKGROUND_GREY,
+        };
+        let per_pixel = self.supersample * self.supersample;
+        for (px, rays) in out.iter_mut().zip(hits.chunks_exact(per_pixel)) {
+            // Fixed summation order: the same hits give the same bits.
+            *px = rays.iter().map(grey).sum::<f32>() / per_pixel as f32;
         }
     }
 }

@@ -43,6 +43,9 @@ pub struct SceneConfig {
     pub max_wheel_speed: f64,
     /// Also render the left and right cameras.
     pub side_cameras: bool,
+    /// Rays per pixel edge: n casts n x n rays per pixel and averages them. 1 (default) is one
+    /// ray through each pixel centre, hard-edged like the paper's small V-REP vision sensor.
+    pub camera_supersample: u32,
     /// Where the car starts (and `reset` returns to): arc length along the track, metres,
     /// wrapped into the track; the sensor bar sits on the line there, heading along it.
     pub start_s_m: f64,
@@ -57,6 +60,7 @@ impl Default for SceneConfig {
             max_wheel_speed: 20.0,
             side_cameras: false,
             start_s_m: 0.0,
+            camera_supersample: 1,
         }
     }
 }
@@ -104,6 +108,12 @@ impl SceneConfig {
         let ms = self.max_wheel_speed;
         if !(ms.is_finite() && ms > 0.0 && ms <= 200.0) {
             return bad("max_wheel_speed", format!("= {ms}, expected in (0, 200]"));
+        }
+        if !(1..=4).contains(&self.camera_supersample) {
+            return bad(
+                "camera_supersample",
+                format!("= {}, expected 1..=4", self.camera_supersample),
+            );
         }
         if !self.start_s_m.is_finite() {
             return bad(

@@ -94,7 +94,11 @@ impl World {
         let site = |k: usize| id(MjtObjBase::mjOBJ_SITE, "site", names::LINE_SITES[k]);
         let cam = |name: &str| -> Result<RayCamera, SceneError> {
             let c = id(MjtObjBase::mjOBJ_CAMERA, "camera", name)?;
-            Ok(RayCamera::new(c, m.cam_fovy()[c]))
+            Ok(RayCamera::new(
+                c,
+                m.cam_fovy()[c],
+                cfg.camera_supersample as usize,
+            ))
         };
         let ids = Ids {
             free_qpos: m.jnt_qposadr()[free] as usize,
@@ -333,8 +337,10 @@ mod tests {
     /// for the car rocking.
     #[test]
     fn cull_radius_covers_camera_footprint() {
+        // Supersampled: the outermost sub-rays reach nearly to the image corners.
         let cfg = SceneConfig {
             side_cameras: true,
+            camera_supersample: 4,
             ..SceneConfig::default()
         };
         let mut w = World::new(&cfg).unwrap();

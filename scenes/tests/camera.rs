@@ -301,3 +301,43 @@ fn culling_far_geoms_does_not_change_images() {
         }
     }
 }
+
+#[test]
+fn supersampling_softens_edges_but_keeps_the_line_in_place() {
+    let mut sharp = oval_world(false);
+    let mut soft = World::new(&SceneConfig {
+        camera_supersample: 3,
+        ..SceneConfig::default()
+    })
+    .unwrap();
+    let mut greys = 0;
+    for (k, off) in [0.0, 0.007, -0.013, 0.021].iter().enumerate() {
+        let yaw = 0.1 * k as f64 - 0.15;
+        sharp.set_pose(-0.2, *off, yaw);
+        soft.set_pose(-0.2, *off, yaw);
+        let (a, b) = (sharp.sense().image, soft.sense().image);
+        // Darkness-weighted mean column: where the line is.
+        let centre = |img: &[f32; IMAGE_PIXELS]| {
+            let (mut m, mut c) = (0.0, 0.0);
+            for (i, p) in img.iter().enumerate() {
+                let d = (0.85 - p).max(0.0) as f64;
+                m += d;
+                c += d * (i % IMAGE_WIDTH) as f64;
+            }
+            c / m
+        };
+        assert!(
+            (centre(&a) - centre(&b)).abs() < 0.4,
+            "offset {off}: {} vs {}",
+            centre(&a),
+            centre(&b)
+        );
+        let mean = |img: &[f32; IMAGE_PIXELS]| img.iter().sum::<f32>() / IMAGE_PIXELS as f32;
+        assert!((mean(&a) - mean(&b)).abs() < 0.05);
+        greys += b.iter().filter(|&&p| p > 0.15 && p < 0.8).count();
+    }
+    assert!(
+        greys > 10,
+        "supersampled edges should have intermediate greys, found {greys}"
+    );
+}
