@@ -30,6 +30,40 @@ struct Ids {
     line_sites: [usize; 3],
 }
 
+/// Id of a named model object; a miss is a generator bug, reported rather than panicking.
+fn find(
+    m: &MjModel,
+    kind: MjtObjBase,
+    label: &'static str,
+    name: &str,
+) -> Result<usize, SceneError> {
+    m.name_to_id(kind, name)
+        .ok_or_else(|| SceneError::MissingObject {
+            kind: label,
+            name: name.to_string(),
+        })
+}
+
+impl Ids {
+    fn lookup(m: &MjModel) -> Result<Ids, SceneError> {
+        type O = MjtObjBase;
+        let free = find(m, O::mjOBJ_JOINT, "joint", names::BODY)?;
+        let act = |k: usize| find(m, O::mjOBJ_ACTUATOR, "actuator", names::WHEEL_JOINTS[k]);
+        let sens = |k: usize| -> Result<usize, SceneError> {
+            let s = find(m, O::mjOBJ_SENSOR, "sensor", names::WHEEL_SENSORS[k])?;
+            Ok(m.sensor_adr()[s] as usize)
+        };
+        let site = |k: usize| find(m, O::mjOBJ_SITE, "site", names::LINE_SITES[k]);
+        Ok(Ids {
+            free_qpos: m.jnt_qposadr()[free] as usize,
+            free_qvel: m.jnt_dofadr()[free] as usize,
+            actuators: [act(0)?, act(1)?],
+            wheel_sensors: [sens(0)?, sens(1)?],
+            line_sites: [site(0)?, site(1)?, site(2)?],
+        })
+    }
+}
+
 /// A line-tracer car on a track. Not thread-safe to share, but can move between threads.
 pub struct World {
     cfg: SceneConfig,
@@ -51,7 +85,7 @@ pub struct World {
 
 impl World {
     /// Loads the track, generates the MJCF, compiles it with MuJoCo and places the car at the
-    /// start (sensor bar on the first waypoint, heading along the first segment).
+    /// start (sensor bar on the line at `start_s_m`, heading along it).
     pub fn new(cfg: &SceneConfig) -> Result<World, SceneError> {
         let substeps = cfg.validate()?;
         let track = Track::load(&cfg.track)?;
@@ -72,40 +106,11 @@ impl World {
             message: e.to_string(),
         })?;
         let m = data.model();
-        let id = |kind: MjtObjBase, label: &'static str, name: &str| {
-            m.name_to_id(kind, name)
-                .ok_or_else(|| SceneError::MissingObject {
-                    kind: label,
-                    name: name.to_string(),
-                })
-        };
-        let free = id(MjtObjBase::mjOBJ_JOINT, "joint", names::BODY)?;
-        let act = |k: usize| {
-            id(
-                MjtObjBase::mjOBJ_ACTUATOR,
-                "actuator",
-                names::WHEEL_JOINTS[k],
-            )
-        };
-        let sens = |k: usize| -> Result<usize, SceneError> {
-            let s = id(MjtObjBase::mjOBJ_SENSOR, "sensor", names::WHEEL_SENSORS[k])?;
-            Ok(m.sensor_adr()[s] as usize)
-        };
-        let site = |k: usize| id(MjtObjBase::mjOBJ_SITE, "site", names::LINE_SITES[k]);
+        let ids = Ids::lookup(m)?;
         let cam = |name: &str| -> Result<RayCamera, SceneError> {
-            let c = id(MjtObjBase::mjOBJ_CAMERA, "camera", name)?;
-            Ok(RayCamera::new(
-                c,
-                m.cam_fovy()[c],
-                cfg.camera_supersample as usize,
-            ))
-        };
-        let ids = Ids {
-            free_qpos: m.jnt_qposadr()[free] as usize,
-            free_qvel: m.jnt_dofadr()[free] as usize,
-            actuators: [act(0)?, act(1)?],
-            wheel_sensors: [sens(0)?, sens(1)?],
-            line_sites: [site(0)?, site(1)?, site(2)?],
+            let c = find(m, MjtObjBase::mjOBJ_CAMERA, "camera", name)?;
+            let ss = cfg.camera_supersample as usize;
+            Ok(RayCamera::new(c, m.cam_fovy()[c], ss))
         };
         let camera = cam(names::CAMERA_MID)?;
         let side_cameras = if cfg.side_cameras {
