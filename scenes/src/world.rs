@@ -81,6 +81,8 @@ pub struct World {
     culling: LineCulling,
     camera_groups: [u8; 6],
     line_groups: [u8; 6],
+    /// Set by `mj_step_bare`: kinematics and sensors lag the state until the next `forward`.
+    stale: bool,
 }
 
 impl World {
@@ -137,6 +139,7 @@ impl World {
             culling,
             camera_groups: group_mask(&[FLOOR_GROUP, LINE_GROUP]),
             line_groups: group_mask(&[LINE_GROUP]),
+            stale: false,
         };
         world.reset();
         Ok(world)
@@ -177,6 +180,7 @@ impl World {
             self.rejected += 1;
             tracing::debug!(?wheel_cmd, "rejected a non-finite wheel command");
         }
+        self.refresh();
         let [a, b] = self.ids.actuators;
         let ctrl = self.data.ctrl_mut();
         ctrl[a] = self.cmd[0];
@@ -196,10 +200,20 @@ impl World {
     /// sensors, no bookkeeping. For benchmarks; lap counting misses what happens here.
     pub fn mj_step_bare(&mut self) {
         self.data.step();
+        self.stale = true;
+    }
+
+    /// Brings kinematics and sensor data up to date after bare steps.
+    fn refresh(&mut self) {
+        if self.stale {
+            self.data.forward();
+            self.stale = false;
+        }
     }
 
     /// All sensors at the current state.
     pub fn sense(&mut self) -> Sensors {
+        self.refresh();
         let (x, y, _) = self.pose();
         self.culling.update(&mut self.data, [x, y]);
         let mut image = [0.0; IMAGE_PIXELS];
@@ -302,8 +316,12 @@ impl World {
 
     /// Puts the car origin (axle midpoint) at (x, y) with heading `yaw`, at rest on the floor.
     /// Keeps the time, the command and the lap count (the jump itself is not counted as
-    /// progress).
-    pub fn set_pose(&mut self, x: f64, y: f64, yaw: f64) {
+    /// progress). Returns false, leaving the car where it was, if a value is not finite.
+    pub fn set_pose(&mut self, x: f64, y: f64, yaw: f64) -> bool {
+        if !(x.is_finite() && y.is_finite() && yaw.is_finite()) {
+            tracing::warn!(x, y, yaw, "set_pose ignored: non-finite pose");
+            return false;
+        }
         let (qa, va) = (self.ids.free_qpos, self.ids.free_qvel);
         let (s, c) = (yaw / 2.0).sin_cos();
         let qpos = self.data.qpos_mut();
@@ -311,16 +329,27 @@ impl World {
         // The free joint's 6 dofs and the wheels: the car is placed at rest.
         self.data.qvel_mut()[va..].fill(0.0);
         self.data.forward();
+        self.stale = false;
         let (s, _) = self.bar_on_track();
         self.laps.reanchor(s);
+        true
     }
 
     /// Puts the car at rest with its sensor bar at arc length `s_m` of the track, `lateral_m`
     /// off the line (sign as `GroundTruth::lateral_m`) and heading along the line turned by
-    /// `yaw_offset` radians (left positive). Same bookkeeping as `set_pose`.
-    pub fn place_on_track(&mut self, s_m: f64, lateral_m: f64, yaw_offset: f64) {
+    /// `yaw_offset` radians (left positive). Same bookkeeping and result as `set_pose`.
+    pub fn place_on_track(&mut self, s_m: f64, lateral_m: f64, yaw_offset: f64) -> bool {
+        if !(s_m.is_finite() && lateral_m.is_finite() && yaw_offset.is_finite()) {
+            tracing::warn!(
+                s_m,
+                lateral_m,
+                yaw_offset,
+                "place_on_track ignored: non-finite"
+            );
+            return false;
+        }
         let (p, yaw) = mjcf::pose_on_track(&self.track, s_m, lateral_m, yaw_offset);
-        self.set_pose(p[0], p[1], yaw);
+        self.set_pose(p[0], p[1], yaw)
     }
 
     /// Back to the start pose at rest, time 0, command 0, lap count 0.
@@ -329,6 +358,7 @@ impl World {
         self.data.reset();
         self.cmd = [0.0; 2];
         self.data.forward();
+        self.stale = false;
         let (s, _) = self.bar_on_track();
         self.laps = LapCounter::new(self.track.length_m(), s);
     }
