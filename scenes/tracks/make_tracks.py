@@ -7,7 +7,11 @@ Pieces: ("S", length) straight; ("L"|"R", radius, degrees) arc turning left/righ
 """
 import math
 
-SPACING = 0.02  # metres between waypoints on arcs (sagitta < 0.3 mm at r = 0.15 m)
+# Waypoints on arcs are spaced so the polyline strays at most SAGITTA from the true arc (0.5 mm,
+# a twentieth of a camera pixel's footprint), but no more than MAX_SPACING apart: every waypoint
+# becomes a geom, and geoms cost physics and ray-casting time.
+SAGITTA = 0.0005
+MAX_SPACING = 0.04
 
 
 def trace(pieces, start=(0.0, 0.0), heading=0.0):
@@ -25,7 +29,8 @@ def trace(pieces, start=(0.0, 0.0), heading=0.0):
             sign = 1.0 if p[0] == "L" else -1.0
             ang = math.radians(deg)
             cx, cy = x - sign * r * math.sin(h), y + sign * r * math.cos(h)
-            n = max(2, math.ceil(r * ang / SPACING))
+            spacing = min(MAX_SPACING, math.sqrt(8.0 * r * SAGITTA))
+            n = max(2, math.ceil(r * ang / spacing))
             a0 = h - sign * math.pi / 2
             for k in range(1, n + 1):
                 a = a0 + sign * ang * k / n
