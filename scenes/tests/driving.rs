@@ -190,3 +190,42 @@ fn place_on_track_and_start_anywhere() {
     w.reset();
     assert!((w.sense().truth.track_s - len / 2.0).abs() < 1e-6);
 }
+
+#[test]
+fn middle_line_sensor_agrees_with_ground_truth() {
+    // Two independent paths to "over the line": a MuJoCo ray against the line geoms, and the
+    // distance to the track polyline. They must agree except within 1 mm of the line's edge.
+    for track in ["oval", "bends", "s_loop", "square"] {
+        let noisy = TeacherConfig {
+            noise_std: 3.0,
+            seed: 3,
+            ..TeacherConfig::default()
+        };
+        let mut w = World::new(&SceneConfig::default().with_track(shipped_track(track))).unwrap();
+        let half = w.track().line_width_m() / 2.0;
+        let mut t = Teacher::new(&noisy);
+        let mut s = w.sense();
+        let (mut on, mut off) = (0, 0);
+        for k in 0..1500 {
+            let c = t.act(&s);
+            w.step(c);
+            s = w.sense();
+            let lat = s.truth.lateral_m.abs();
+            if (lat - half).abs() < 1e-3 {
+                continue;
+            }
+            assert_eq!(
+                s.line[1],
+                lat < half,
+                "{track} step {k}: {:?} {:?}",
+                s.line,
+                s.truth
+            );
+            if s.line[1] { on += 1 } else { off += 1 }
+        }
+        assert!(
+            on > 100 && off > 10,
+            "{track}: on {on}, off {off}: not both cases exercised"
+        );
+    }
+}
