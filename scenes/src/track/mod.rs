@@ -123,14 +123,31 @@ impl Track {
         Self::from_parts(path, parsed.points, parsed.lines, parsed.line_width)
     }
 
-    /// Builds a track from points already in memory (line numbers are then the point numbers).
+    /// Builds a track from points already in memory (line numbers are then the point numbers,
+    /// and a bad width is reported as line 0).
     pub fn from_points(
         name: &str,
         points: Vec<[f64; 2]>,
         line_width: f64,
     ) -> Result<Track, TrackError> {
+        let path = Path::new(name);
+        parse::check_width(line_width).map_err(|message| TrackError::Parse {
+            path: path.to_path_buf(),
+            line: 0,
+            message,
+        })?;
+        if let Some(i) = points
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        {
+            return Err(TrackError::NonFinite {
+                path: path.to_path_buf(),
+                line: i + 1,
+                value: format!("{:?}", points[i]),
+            });
+        }
         let lines = (1..=points.len()).collect();
-        Self::from_parts(Path::new(name), points, lines, line_width)
+        Self::from_parts(path, points, lines, line_width)
     }
 
     fn from_parts(
@@ -289,6 +306,17 @@ mod tests {
         assert!((q[0]).abs() < 1e-3 && (q[1] - r).abs() < 1e-3);
         // Heading -x at the top of a counter-clockwise circle (+-pi).
         assert!(heading.cos() < -0.99, "{heading}");
+    }
+
+    #[test]
+    fn in_memory_points_are_validated_too() {
+        let ok = vec![[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]];
+        let e = Track::from_points("mem", vec![[0.0, 0.0], [f64::NAN, 0.0], [0.5, 1.0]], 0.02);
+        assert!(matches!(e, Err(TrackError::NonFinite { line: 2, .. })));
+        let e = Track::from_points("mem", ok.clone(), f64::NAN);
+        assert!(matches!(e, Err(TrackError::Parse { line: 0, .. })));
+        let e = Track::from_points("mem", ok, 0.5);
+        assert!(matches!(e, Err(TrackError::Parse { .. })));
     }
 
     #[test]

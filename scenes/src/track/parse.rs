@@ -92,13 +92,19 @@ fn parse_width(value: &str) -> Result<f64, String> {
     let w: f64 = value
         .parse()
         .map_err(|_| format!("width `{value}` is not a number"))?;
+    check_width(w)?;
+    Ok(w)
+}
+
+/// NaN fails the range test too.
+pub(super) fn check_width(w: f64) -> Result<(), String> {
     if !(WIDTH_RANGE_M.0..=WIDTH_RANGE_M.1).contains(&w) {
         return Err(format!(
-            "width {value} m is outside [{}, {}] m",
+            "width {w} m is outside [{}, {}] m",
             WIDTH_RANGE_M.0, WIDTH_RANGE_M.1
         ));
     }
-    Ok(w)
+    Ok(())
 }
 
 #[cfg(test)]
