@@ -185,6 +185,50 @@ impl Dataset {
         Ok(())
     }
 
+    /// The sequences of all `sets` in order; they must agree on T, H, W and A.
+    pub fn concat(sets: &[Dataset]) -> Result<Dataset, DataError> {
+        let shape = |detail: String| DataError::Shape {
+            path: PathBuf::from(MEMORY),
+            detail,
+        };
+        let first = sets
+            .first()
+            .ok_or_else(|| shape("nothing to concatenate".into()))?;
+        let key = |d: &Dataset| (d.steps(), d.image_size(), d.action_dim());
+        if let Some(d) = sets.iter().find(|d| key(d) != key(first)) {
+            return Err(shape(format!(
+                "cannot concatenate (T, (H, W), A) {:?} with {:?}",
+                key(first),
+                key(d)
+            )));
+        }
+        let images: Vec<&Tensor> = sets.iter().map(|d| &d.images).collect();
+        let actions: Vec<&Tensor> = sets.iter().map(|d| &d.actions).collect();
+        Ok(Dataset {
+            images: Tensor::cat(&images, 0),
+            actions: Tensor::cat(&actions, 0),
+        })
+    }
+
+    /// Per action component (mean, std) over all steps, for `ModelConfig::action_offset` /
+    /// `action_scale`; a constant component gets scale 1.
+    pub fn action_normalisation(&self) -> (Vec<f64>, Vec<f64>) {
+        let flat = self
+            .actions
+            .reshape([-1, self.action_dim()])
+            .to_kind(Kind::Double);
+        let dim = [0i64];
+        let mean = Vec::<f64>::try_from(flat.mean_dim(dim.as_slice(), false, Kind::Double));
+        let std = Vec::<f64>::try_from(flat.std_dim(dim.as_slice(), false, false));
+        let (mean, std) = (mean.unwrap_or_default(), std.unwrap_or_default());
+        (
+            mean,
+            std.into_iter()
+                .map(|s| if s > 1e-6 { s } else { 1.0 })
+                .collect(),
+        )
+    }
+
     /// Number of sequences N.
     pub fn len(&self) -> i64 {
         self.images.size()[0]
@@ -396,5 +440,16 @@ mod tests {
         );
         let (train, eval) = d.split(0.2, 1);
         assert_eq!((train.len(), eval.len()), (5, 2));
+        let both = Dataset::concat(&[train, eval]).unwrap();
+        assert_eq!(both.len(), 7);
+        let longer = Dataset::new(
+            Tensor::zeros([1, 4, 8, 12], (Kind::Float, tch::Device::Cpu)),
+            Tensor::zeros([1, 4, 2], (Kind::Float, tch::Device::Cpu)),
+        )
+        .unwrap();
+        assert!(
+            Dataset::concat(&[both, longer]).is_err(),
+            "T 3 and T 4 do not concatenate"
+        );
     }
 }

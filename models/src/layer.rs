@@ -140,23 +140,59 @@ impl PredLayer {
         let mut cs = Vec::with_capacity(self.gus.len());
         for ((gu, h), c) in self.gus.iter().zip(&prev.h).zip(&prev.c) {
             let (h_new, c_new) = gu.forward(&x, h, c);
-            // tau = 1 skips the blend so the plain recurrent update is exact, not just close.
-            if self.tau == 1.0 {
-                hs.push(h_new);
-                cs.push(c_new);
-            } else {
-                // Leaky integration of the whole unit state (h and c), as the reference does:
-                // the unit's memory, not only its output, moves at the layer's timescale.
-                let keep = 1.0 - 1.0 / self.tau;
-                hs.push(h * keep + h_new * (1.0 / self.tau));
-                cs.push(c * keep + c_new * (1.0 / self.tau));
-            }
+            hs.push(self.integrate(h, h_new));
+            cs.push(self.integrate(c, c_new));
         }
+        let r = self.mix(&hs, action);
+        (hs, cs, r)
+    }
+
+    /// [`Self::top_down`] for K candidate actions from a batch-1 state: `above` is R_{l+1}(t) for
+    /// each candidate (`[K, ...]`), or `None` at the top. Only the action-dependent work runs K
+    /// times: the top layer's units do not see a(t) at all (only its weights do), and below it
+    /// only the top-down channels of each unit's convolution differ between candidates.
+    pub fn top_down_candidates(
+        &self,
+        prev: &LayerState,
+        above: Option<&Tensor>,
+        actions: &Tensor,
+    ) -> Tensor {
+        let hs: Vec<Tensor> = self
+            .gus
+            .iter()
+            .zip(&prev.h)
+            .zip(&prev.c)
+            .map(|((gu, h), c)| {
+                let (h_new, _) = match above {
+                    Some(r) => {
+                        let up = r.upsample_nearest2d([self.size.0, self.size.1], None, None);
+                        gu.forward_split(&prev.e, &up, h, c)
+                    }
+                    None => gu.forward(&prev.e, h, c),
+                };
+                self.integrate(h, h_new)
+            })
+            .collect();
+        self.mix(&hs, actions)
+    }
+
+    /// Leaky integration with tau: (1 - 1/tau) old + (1/tau) new.
+    fn integrate(&self, old: &Tensor, new: Tensor) -> Tensor {
+        // tau = 1 skips the blend so the plain recurrent update is exact, not just close.
+        if self.tau == 1.0 {
+            return new;
+        }
+        // Applied to the whole unit state (h and c), as the reference does: the unit's memory,
+        // not only its output, moves at the layer's timescale.
+        old * (1.0 - 1.0 / self.tau) + new * (1.0 / self.tau)
+    }
+
+    /// R_l = sum_d w_d(a) h_d; h_d may have batch 1 and the actions batch K (broadcast).
+    fn mix(&self, hs: &[Tensor], action: &Tensor) -> Tensor {
         let w = self.action_mlp.forward(action); // [B, G]
         let b = w.size()[0];
-        let stacked = Tensor::stack(&hs, 1); // [B, G, C, H, W]
-        let r = (stacked * w.view([b, -1, 1, 1, 1])).sum_dim_intlist(1, false, None);
-        (hs, cs, r)
+        let stacked = Tensor::stack(hs, 1); // [B or 1, G, C, H, W]
+        (stacked * w.view([b, -1, 1, 1, 1])).sum_dim_intlist(1, false, None)
     }
 
     /// Xhat_l = relu(conv(R_l)).

@@ -133,6 +133,12 @@ fn candidates_match_single_steps_and_depend_on_the_action() {
             "candidate {k} differs from a single step by {diff}"
         );
     }
+    let rowwise = m.predict_candidates(&s.expand(4), &actions);
+    let diff = (&rowwise - &cands).abs().max().double_value(&[]);
+    assert!(
+        diff < 1e-5,
+        "shared-work path differs from the expanded state by {diff}"
+    );
     let spread = (cands.narrow(0, 0, 1) - cands.narrow(0, 3, 1))
         .abs()
         .max()

@@ -263,3 +263,39 @@ fn default_model_learns_the_synthetic_task() {
         "top layer not slower than bottom"
     );
 }
+
+/// The bar on teacher-driven simulator recordings:
+/// `MTANET_TEACHER_NPZ=train.npz[,more.npz] MTANET_TEACHER_EVAL=eval.npz cargo test --release
+/// -p mtanet-models --test training teacher -- --ignored --nocapture`
+/// (record with `mta-simulator --teacher-only --record FILE.npz --seq-len 150`).
+#[test]
+#[ignore]
+fn default_model_learns_teacher_recordings() {
+    let load = |var: &str| {
+        let paths =
+            std::env::var(var).unwrap_or_else(|_| panic!("set {var} to recorded .npz files"));
+        let sets: Vec<Dataset> = paths
+            .split(',')
+            .map(|p| Dataset::load_npz(p).unwrap())
+            .collect();
+        Dataset::concat(&sets).unwrap()
+    };
+    let (data, held) = (load("MTANET_TEACHER_NPZ"), load("MTANET_TEACHER_EVAL"));
+    let (action_offset, action_scale) = data.action_normalisation();
+    let cfg = ModelConfig {
+        action_offset,
+        action_scale,
+        ..ModelConfig::default()
+    };
+    let mut t = trainer(&cfg, TrainConfig::default());
+    run_until(&mut t, &data, 3000);
+    let m = t.evaluate(&held).unwrap();
+    eprintln!("teacher data after {} updates: {m:?}", t.step());
+    assert!(
+        m.mse <= 0.5 * m.copy_last_mse,
+        "mse {} vs copy-last {}",
+        m.mse,
+        m.copy_last_mse
+    );
+    assert!(m.mse_shuffled_actions.unwrap() > 1.5 * m.mse);
+}

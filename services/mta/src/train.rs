@@ -20,10 +20,12 @@ use std::time::Instant;
 pub struct TrainArgs {
     /// Training data .npz (`images` [N,T,H,W] float32 in [0,1], `actions` [N,T,A] float32).
     #[arg(long)]
-    data: PathBuf,
-    /// Held-out data .npz; without it `train.eval_fraction` of --data is held out.
-    #[arg(long)]
-    eval: Option<PathBuf>,
+    /// (Several files, comma-separated or repeated, are concatenated.)
+    #[arg(long, value_delimiter = ',', required = true)]
+    data: Vec<PathBuf>,
+    /// Held-out data .npz (one or more); without it `train.eval_fraction` of --data is held out.
+    #[arg(long, value_delimiter = ',')]
+    eval: Vec<PathBuf>,
     /// Passes over the training data.
     #[arg(long, default_value_t = 20)]
     epochs: u64,
@@ -89,18 +91,13 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(s) = args.seed {
         run.train.seed = s;
     }
-    let data = Dataset::load_npz(&args.data)
-        .with_context(|| format!("loading training data {}", args.data.display()))?;
-    let (train, held) = match &args.eval {
-        Some(p) => (
-            data,
-            Dataset::load_npz(p).with_context(|| format!("loading eval data {}", p.display()))?,
-        ),
-        None if data.len() >= 2 => data.split(run.train.eval_fraction, run.train.seed),
-        None => bail!(
-            "{}: one sequence cannot be split into train and eval; pass --eval",
-            args.data.display()
-        ),
+    let data = load_all(&args.data, "training")?;
+    let (train, held) = if !args.eval.is_empty() {
+        (data, load_all(&args.eval, "eval")?)
+    } else if data.len() >= 2 {
+        data.split(run.train.eval_fraction, run.train.seed)
+    } else {
+        bail!("one training sequence cannot be split into train and eval; pass --eval");
     };
     adopt_data_shape(&mut run.model, &train, &held)?;
     run.model.validate().context("model configuration")?;
@@ -163,7 +160,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                     }
                     stop |= args.max_updates.is_some_and(|m| s.step >= m);
                 }
-                Err(e) => bar.println(format!("warning: {e}")),
+                Err(e) => bar.suspend(|| tracing::warn!("{e}")),
             },
         )?;
         if let Some(e) = io_error.take() {
@@ -175,12 +172,16 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             "mse": m.mse, "copy_last_mse": m.copy_last_mse, "mse_over_copy_last": m.mse_over_copy_last,
             "wall_time_s": start.elapsed().as_secs_f64()});
         writeln!(epochs_log, "{line}")?;
-        bar.println(format!(
-            "epoch {epochs_done}: {} updates, held-out mse {:.5} = {:.3} x copy-last",
-            trainer.step(),
-            m.mse,
-            m.mse_over_copy_last
-        ));
+        // Through tracing (stderr) so that logs to a file keep them; the bar hides off a tty.
+        bar.suspend(|| {
+            tracing::info!(
+                epoch = epochs_done,
+                updates = trainer.step(),
+                mse = m.mse,
+                mse_over_copy_last = m.mse_over_copy_last,
+                "held-out"
+            )
+        });
         trainer
             .save_checkpoint(&out("checkpoint.safetensors"), last_loss)
             .context("saving checkpoint")?;
@@ -244,6 +245,17 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Loads and concatenates data sets, naming the file that fails.
+fn load_all(paths: &[PathBuf], what: &str) -> anyhow::Result<Dataset> {
+    let sets = paths
+        .iter()
+        .map(|p| {
+            Dataset::load_npz(p).with_context(|| format!("loading {what} data {}", p.display()))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    Dataset::concat(&sets).with_context(|| format!("concatenating {what} data {paths:?}"))
+}
+
 /// Image and action sizes come from the data; a config that says otherwise is overridden (with
 /// a warning), and train/eval sets must agree.
 fn adopt_data_shape(cfg: &mut ModelConfig, train: &Dataset, held: &Dataset) -> anyhow::Result<()> {
@@ -264,19 +276,7 @@ fn adopt_data_shape(cfg: &mut ModelConfig, train: &Dataset, held: &Dataset) -> a
     if cfg.action_offset.is_empty() && cfg.action_scale.is_empty() {
         // Wheel velocities in rad/s would saturate the action MLP: normalise with the training
         // data's statistics, stored in the model config (and so in every checkpoint).
-        let flat = train.actions.reshape([-1, a]);
-        let mean =
-            Vec::<f64>::try_from(flat.mean_dim([0i64].as_slice(), false, tch::Kind::Double))?;
-        let std = Vec::<f64>::try_from(flat.to_kind(tch::Kind::Double).std_dim(
-            [0i64].as_slice(),
-            false,
-            false,
-        ))?;
-        cfg.action_offset = mean;
-        cfg.action_scale = std
-            .iter()
-            .map(|s| if *s > 1e-6 { *s } else { 1.0 })
-            .collect();
+        (cfg.action_offset, cfg.action_scale) = train.action_normalisation();
         tracing::info!(offset = ?cfg.action_offset, scale = ?cfg.action_scale, "action normalisation from the training data");
     }
     Ok(())
