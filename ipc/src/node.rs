@@ -121,3 +121,30 @@ pub fn census(cfg: &IpcConfig) -> Result<NodeCensus, NodeError> {
     census.dead.sort();
     Ok(census)
 }
+
+/// One service of a namespace as `mta status` shows it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ServiceEntry {
+    pub name: String,
+    /// "PublishSubscribe", "Event", ...
+    pub pattern: String,
+    /// Nodes attached (any state).
+    pub nodes: usize,
+}
+
+/// The services that exist in the namespace (they vanish with their last node).
+pub fn services(cfg: &IpcConfig) -> Result<Vec<ServiceEntry>, NodeError> {
+    use iceoryx2::service::Service as _;
+    let config = cfg.iceoryx2()?;
+    let mut out = Vec::new();
+    let _ = ipc::Service::list(&config, |s| {
+        out.push(ServiceEntry {
+            name: s.static_details.name().as_str().to_string(),
+            pattern: format!("{:?}", s.static_details.messaging_pattern()),
+            nodes: s.dynamic_details.as_ref().map_or(0, |d| d.nodes.len()),
+        });
+        CallbackProgression::Continue
+    });
+    out.sort_by(|a, b| (&a.name, &a.pattern).cmp(&(&b.name, &b.pattern)));
+    Ok(out)
+}

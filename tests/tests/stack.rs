@@ -19,6 +19,14 @@ fn assert_namespace_clean(ns: &str) {
         c.alive.is_empty() && c.dead.is_empty(),
         "nodes left behind in {ns}: {c:?}"
     );
+    let services = mtanet_ipc::node::services(&mtanet_ipc::node::IpcConfig {
+        namespace: ns.into(),
+    })
+    .unwrap();
+    assert!(
+        services.is_empty(),
+        "services left behind in {ns}: {services:?}"
+    );
     let shm = leftover_shm(ns);
     assert!(shm.is_empty(), "shared memory left behind in {ns}: {shm:?}");
     remove_namespace_files(ns);

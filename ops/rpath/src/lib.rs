@@ -9,7 +9,9 @@ pub fn emit() {
     for (var, sub) in [("LIBTORCH", "lib"), ("MUJOCO_DYNAMIC_LINK_DIR", "")] {
         println!("cargo:rerun-if-env-changed={var}");
         let Some(dir) = std::env::var_os(var) else {
-            println!("cargo:warning={var} is not set: run ./ops/setup.sh (binaries may not find their libraries)");
+            println!(
+                "cargo:warning={var} is not set: run ./ops/setup.sh (binaries may not find their libraries)"
+            );
             continue;
         };
         let dir = PathBuf::from(dir).join(sub);

@@ -1,12 +1,17 @@
 //! `mta`: the operator CLI.
 
+mod status;
 mod synth;
 mod train;
 
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "mta", version, about = "mtanet operator CLI: training, reports, soak runs, status")]
+#[command(
+    name = "mta",
+    version,
+    about = "mtanet operator CLI: training, reports, soak runs, status"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -18,12 +23,15 @@ enum Cmd {
     Train(train::TrainArgs),
     /// Write a synthetic action-conditioned dataset .npz.
     Synth(synth::SynthArgs),
+    /// Show the nodes and topics of a running stack.
+    Status(status::StatusArgs),
 }
 
 fn main() -> anyhow::Result<()> {
-    tracing_subscriber::fmt().with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into())).init();
+    mtanet_ipc::logging::init();
     match Cli::parse().cmd {
         Cmd::Train(a) => train::run(a),
         Cmd::Synth(a) => synth::run(a),
+        Cmd::Status(a) => status::run(a),
     }
 }

@@ -1,6 +1,7 @@
 //! `[simulator]` section of the stack's config file (with `[simulator.scene]` and
 //! `[simulator.teacher]` for the world and the teacher driver).
 
+use mtanet_scenes::{SceneConfig, TeacherConfig};
 use serde::{Deserialize, Serialize};
 
 /// How simulated time relates to wall-clock time.
@@ -44,6 +45,10 @@ pub struct SimulatorConfig {
     pub replay: bool,
     /// Seconds of wall clock between progress log lines.
     pub log_every_s: f64,
+    /// `[simulator.scene]`: track and physics.
+    pub scene: SceneConfig,
+    /// `[simulator.teacher]`: the teacher driver.
+    pub teacher: TeacherConfig,
 }
 
 impl Default for SimulatorConfig {
@@ -57,6 +62,8 @@ impl Default for SimulatorConfig {
             max_steps: 0,
             replay: true,
             log_every_s: 5.0,
+            scene: SceneConfig::default(),
+            teacher: TeacherConfig::default(),
         }
     }
 }

@@ -9,7 +9,7 @@ use mtanet_ipc::cli::CommonArgs;
 use mtanet_ipc::node::create_node;
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{logging, report, systemd};
-use mtanet_scenes::{SceneConfig, Teacher, TeacherConfig, World};
+use mtanet_scenes::{Teacher, World};
 use mtanet_simulator::config::{Mode, SimulatorConfig};
 use mtanet_simulator::{service, standalone};
 
@@ -71,17 +71,15 @@ fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let shutdown = Shutdown::install().context("installing signal handlers")?;
     let (file, ipc) = args.common.load()?;
-    let mut scene: SceneConfig = file.section("simulator.scene")?;
-    let mut teacher_cfg: TeacherConfig = file.section("simulator.teacher")?;
     let mut cfg: SimulatorConfig = file.section("simulator")?;
     if let Some(t) = args.track {
-        scene.track = t;
+        cfg.scene.track = t;
     }
     if let Some(s) = args.seed {
-        teacher_cfg.seed = s;
+        cfg.teacher.seed = s;
     }
     if let Some(n) = args.noise {
-        teacher_cfg.noise_std = n;
+        cfg.teacher.noise_std = n;
     }
     if let Some(m) = args.mode {
         cfg.mode = m;
@@ -91,9 +89,10 @@ fn main() -> anyhow::Result<()> {
     }
     cfg.expect_trainer |= args.expect_trainer;
 
-    let mut world = World::new(&scene)
+    let (scene, teacher_cfg) = (&cfg.scene, &cfg.teacher);
+    let mut world = World::new(scene)
         .with_context(|| format!("loading the scene for track {}", scene.track.display()))?;
-    let mut teacher = Teacher::new(&teacher_cfg);
+    let mut teacher = Teacher::new(teacher_cfg);
     tracing::info!(track = %scene.track.display(), length_m = world.track().length_m(), "world ready");
 
     if args.teacher_only {

@@ -74,14 +74,14 @@ pub fn run(
     shutdown: &Shutdown,
 ) -> anyhow::Result<Summary> {
     let period = world.config().control_period_s;
+    let mut watchdog = Watchdog::from_env();
     if cfg.mode == Mode::Lockstep {
-        wait_for_peers(ports, cfg, shutdown);
+        wait_for_peers(ports, cfg, shutdown, &mut watchdog);
     }
     let mut summary = Summary::default();
     let mut drive = DriveStats::default();
     let (mut round_trip, mut step_time) = (LatencyStats::new(), LatencyStats::new());
     let mut chunk = ChunkBuilder::default();
-    let mut watchdog = Watchdog::from_env();
     let mut last_cmd = [0.0f32; 2];
     let mut consecutive_misses = 0u32;
     let start = Instant::now();
@@ -182,7 +182,12 @@ pub fn run(
 
 /// Lockstep runs are only reproducible if every step is answered, so wait (bounded) for the
 /// predictor, and for the trainer when one is expected, before the first step.
-fn wait_for_peers(ports: &Ports, cfg: &SimulatorConfig, shutdown: &Shutdown) {
+fn wait_for_peers(
+    ports: &Ports,
+    cfg: &SimulatorConfig,
+    shutdown: &Shutdown,
+    watchdog: &mut Watchdog,
+) {
     let deadline = Instant::now() + Duration::from_secs_f64(cfg.wait_for_peers_s.max(0.0));
     let ready = || {
         ports.commands.publishers() > 0 && (!cfg.expect_trainer || ports.replay.subscribers() > 0)
@@ -196,6 +201,7 @@ fn wait_for_peers(ports: &Ports, cfg: &SimulatorConfig, shutdown: &Shutdown) {
             );
             told = true;
         }
+        watchdog.pet();
         std::thread::sleep(Duration::from_millis(10));
     }
     if !ready() {

@@ -1,0 +1,98 @@
+//! systemd integration: the shipped units verify, and a service really speaks the notify protocol
+//! (READY=1 once up, WATCHDOG=1 from its loop, STOPPING=1 on SIGTERM).
+
+use std::os::unix::net::UnixDatagram;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use mtanet_system_tests::*;
+
+#[test]
+fn rendered_units_pass_systemd_analyze_verify() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let bins = bin_dir();
+    let out = Command::new(root.join("ops/install-systemd.sh"))
+        .args([
+            "--dest",
+            dir.path().to_str().unwrap(),
+            "--bin",
+            bins.to_str().unwrap(),
+        ])
+        .output()
+        .expect("running ops/install-systemd.sh");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let units: Vec<String> = [
+        "mtanet-simulator.service",
+        "mtanet-predictor.service",
+        "mtanet-trainer.service",
+        "mtanet.target",
+    ]
+    .iter()
+    .map(|u| dir.path().join(u).to_string_lossy().into_owned())
+    .collect();
+    let verify = Command::new("systemd-analyze")
+        .arg("verify")
+        .args(&units)
+        .output()
+        .expect("systemd-analyze is needed for this test (Debian package systemd)");
+    let stderr = String::from_utf8_lossy(&verify.stderr);
+    // verify only warns about unknown keys; treat any complaint about our units as a failure.
+    let complaints: Vec<&str> = stderr.lines().filter(|l| l.contains("mtanet")).collect();
+    assert!(
+        verify.status.success() && complaints.is_empty(),
+        "systemd-analyze verify:\n{stderr}"
+    );
+}
+
+#[test]
+fn predictor_notifies_ready_watchdog_and_stopping() {
+    let dir = tempfile::tempdir().unwrap();
+    let sock_path = dir.path().join("notify.sock");
+    let sock = UnixDatagram::bind(&sock_path).unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let ns = unique_namespace("sd");
+    let log = std::fs::File::create(dir.path().join("predictor.log")).unwrap();
+    // systemd sets WATCHDOG_PID to the service's pid; `exec` keeps the shell's pid for it.
+    let mut child = Command::new("sh")
+        .args(["-c", r#"WATCHDOG_PID=$$ exec "$0" --namespace "$1""#])
+        .arg(bin("mta-predictor"))
+        .arg(&ns)
+        .env("NOTIFY_SOCKET", &sock_path)
+        .env("WATCHDOG_USEC", "400000")
+        .stderr(log)
+        .spawn()
+        .unwrap();
+    let mut seen = String::new();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut buf = [0u8; 512];
+    let mut signalled = false;
+    while Instant::now() < deadline && !seen.contains("STOPPING=1") {
+        if let Ok(n) = sock.recv(&mut buf) {
+            seen.push_str(&String::from_utf8_lossy(&buf[..n]));
+            seen.push('\n');
+        }
+        if !signalled && seen.contains("READY=1") && seen.matches("WATCHDOG=1").count() >= 2 {
+            // SAFETY: kill(2) on our own child.
+            unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+            signalled = true;
+        }
+    }
+    if !signalled {
+        let _ = child.kill();
+    }
+    let status = child.wait().unwrap();
+    remove_namespace_files(&ns);
+    assert!(seen.contains("READY=1"), "no READY=1 in {seen:?}");
+    assert!(
+        seen.matches("WATCHDOG=1").count() >= 2,
+        "watchdog not petted: {seen:?}"
+    );
+    assert!(seen.contains("STOPPING=1"), "no STOPPING=1 in {seen:?}");
+    assert!(status.success(), "predictor exited with {status}");
+}
