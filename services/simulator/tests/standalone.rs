@@ -1,0 +1,169 @@
+//! The standalone teacher run: report contents, the dataset format and its determinism, errors.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_scenes::{SceneConfig, Teacher, TeacherConfig, World, shipped_track};
+use mtanet_simulator::standalone::{StandaloneRun, run};
+use ndarray::{Array3, Array4};
+use ndarray_npy::NpzReader;
+
+fn record(
+    dir: &Path,
+    name: &str,
+    seed: u64,
+    noise: f32,
+    seconds: f64,
+) -> (PathBuf, mtanet_simulator::standalone::Report) {
+    let mut world = World::new(&SceneConfig::default()).unwrap();
+    let mut teacher = Teacher::new(&TeacherConfig {
+        seed,
+        noise_std: noise,
+        ..TeacherConfig::default()
+    });
+    let path = dir.join(name);
+    let spec = StandaloneRun {
+        sim_seconds: seconds,
+        record: Some(path.clone()),
+        seq_len: 20,
+        seed,
+    };
+    let report = run(&mut world, &mut teacher, &spec, &Shutdown::manual()).unwrap();
+    (path, report)
+}
+
+fn load(path: &Path) -> (Array4<f32>, Array3<f32>) {
+    let mut npz = NpzReader::new(std::fs::File::open(path).unwrap()).unwrap();
+    (
+        npz.by_name("images").unwrap(),
+        npz.by_name("actions").unwrap(),
+    )
+}
+
+#[test]
+fn recording_has_the_dataset_layout_and_follows_the_actions() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, report) = record(dir.path(), "d.npz", 1, 1.0, 8.0);
+    assert_eq!(report.steps, 400);
+    assert_eq!(report.recorded_sequences, 20);
+    let (images, actions) = load(&path);
+    assert_eq!(images.shape(), &[20, 20, 8, 12]);
+    assert_eq!(actions.shape(), &[20, 20, 2]);
+    assert!(
+        images.iter().all(|v| (0.0..=1.0).contains(v)),
+        "images outside [0,1]"
+    );
+    // The car drives forward: the measured wheel velocities are mostly positive and vary (noise).
+    let mean = actions.mean().unwrap();
+    assert!(mean > 1.0, "mean wheel velocity {mean}");
+    let first = actions[[5, 3, 0]];
+    assert!(
+        actions.iter().any(|v| (v - first).abs() > 0.1),
+        "actions are constant"
+    );
+    assert!(
+        report.lateral_error_m.max < 0.0125,
+        "teacher left the line: {:?}",
+        report.lateral_error_m
+    );
+}
+
+#[test]
+fn same_seed_same_bytes_other_seed_other_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, _) = record(dir.path(), "a.npz", 7, 1.5, 4.0);
+    let (b, _) = record(dir.path(), "b.npz", 7, 1.5, 4.0);
+    let (c, _) = record(dir.path(), "c.npz", 8, 1.5, 4.0);
+    assert_eq!(
+        std::fs::read(&a).unwrap(),
+        std::fs::read(&b).unwrap(),
+        "same seed must give identical files"
+    );
+    assert_ne!(
+        load(&a).0,
+        load(&c).0,
+        "another noise seed must change the images"
+    );
+}
+
+#[test]
+fn teacher_report_on_the_oval() {
+    let dir = tempfile::tempdir().unwrap();
+    let report_path = dir.path().join("rep.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .args(["--teacher-only", "--sim-seconds", "60", "--report"])
+        .arg(&report_path)
+        .arg("--track")
+        .arg(shipped_track("oval"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
+    assert!(r["laps"].as_u64().unwrap() >= 2, "{r}");
+    assert_eq!(r["steps"], 3000);
+    assert!(
+        r["lateral_error_m"]["max"].as_f64().unwrap() < 0.0125,
+        "{r}"
+    );
+    assert!(
+        r["lateral_error_m"]["mean"].as_f64().unwrap()
+            < r["lateral_error_m"]["max"].as_f64().unwrap()
+    );
+    assert!(r["real_time_factor"].as_f64().unwrap() > 1.0, "{r}");
+}
+
+#[test]
+fn bad_inputs_fail_with_the_file_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope.csv");
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .args([
+            "--teacher-only",
+            "--sim-seconds",
+            "1",
+            "--report",
+            "/dev/null",
+            "--track",
+        ])
+        .arg(&missing)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("nope.csv"), "{err}");
+
+    let bad = dir.path().join("two.csv");
+    std::fs::write(&bad, "x,y\n0,0\n1,0\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .args([
+            "--teacher-only",
+            "--sim-seconds",
+            "1",
+            "--report",
+            "/dev/null",
+            "--track",
+        ])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("two.csv"), "{err}");
+
+    let cfg = dir.path().join("bad.toml");
+    std::fs::write(&cfg, "[simulator]\nmode = \"warp\"\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .arg("--config")
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.toml") && err.contains("mode"),
+        "{err}"
+    );
+}
