@@ -3,7 +3,7 @@
 use std::path::Path;
 use std::time::Duration;
 
-use mtanet_system_tests::*;
+use mtanet_mta::stack::*;
 
 const SIGTERM: i32 = libc::SIGTERM;
 const SIGKILL: i32 = libc::SIGKILL;

@@ -5,7 +5,7 @@ use std::os::unix::net::UnixDatagram;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use mtanet_system_tests::*;
+use mtanet_mta::stack::*;
 
 #[test]
 fn rendered_units_pass_systemd_analyze_verify() {

@@ -1,1 +1,3 @@
+//! Library side of the `mta` CLI: what its subcommands share with the system tests.
 
+pub mod stack;

@@ -1,5 +1,6 @@
 //! `mta`: the operator CLI.
 
+mod soak;
 mod status;
 mod synth;
 mod train;
@@ -25,6 +26,8 @@ enum Cmd {
     Synth(synth::SynthArgs),
     /// Show the nodes and topics of a running stack.
     Status(status::StatusArgs),
+    /// Run the three-process stack in lockstep for N steps and print latency percentiles.
+    Soak(soak::SoakArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -33,5 +36,6 @@ fn main() -> anyhow::Result<()> {
         Cmd::Train(a) => train::run(a),
         Cmd::Synth(a) => synth::run(a),
         Cmd::Status(a) => status::run(a),
+        Cmd::Soak(a) => soak::run(a),
     }
 }

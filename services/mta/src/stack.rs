@@ -1,0 +1,190 @@
+//! Running a stack of the real binaries as separate processes in a private iceoryx2 namespace,
+//! stopping them with signals and checking what they leave behind. Used by `mta soak` and the
+//! system tests. Children are killed on drop, so a failure never leaves a stack running.
+
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use mtanet_ipc::node::{IpcConfig, NodeCensus, census};
+
+/// `target/<profile>/`, where cargo puts the binaries (tests run from `target/<profile>/deps/`).
+pub fn bin_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("own executable path");
+    let dir = exe.parent().expect("executable has a directory");
+    let dir = if dir.ends_with("deps") {
+        dir.parent().unwrap_or(dir)
+    } else {
+        dir
+    };
+    dir.to_path_buf()
+}
+
+/// Path of a workspace binary; panics with the command to build it if it is missing.
+pub fn bin(name: &str) -> PathBuf {
+    let p = bin_dir().join(name);
+    assert!(
+        p.exists(),
+        "{} is not built: run `cargo build --release --workspace --bins` first (./ops/test.sh does)",
+        p.display()
+    );
+    p
+}
+
+/// A namespace no other test or stack uses.
+pub fn unique_namespace(tag: &str) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    format!("{tag}{}x{nanos}", std::process::id())
+}
+
+/// A child process that is killed (SIGKILL) if still running when dropped.
+pub struct Proc {
+    pub name: String,
+    child: Child,
+    pub log: PathBuf,
+}
+
+impl Proc {
+    /// Starts `bin(name)` with `args`; stderr goes to `<log_dir>/<name>.log`. Panics on failure.
+    pub fn spawn<S: AsRef<OsStr>>(name: &str, args: &[S], log_dir: &Path) -> Proc {
+        Self::try_spawn(name, args, log_dir).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Proc::spawn`] returning an error instead of panicking.
+    pub fn try_spawn<S: AsRef<OsStr>>(
+        name: &str,
+        args: &[S],
+        log_dir: &Path,
+    ) -> std::io::Result<Proc> {
+        let log = log_dir.join(format!("{name}.log"));
+        let file = std::fs::File::create(&log)?;
+        let path = bin_dir().join(name);
+        let child = Command::new(&path)
+            .args(args)
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(file)
+            .spawn()
+            .map_err(|e| {
+                let hint = "build with `cargo build --release --workspace --bins`";
+                std::io::Error::new(
+                    e.kind(),
+                    format!("starting {}: {e} ({hint})", path.display()),
+                )
+            })?;
+        Ok(Proc {
+            name: name.into(),
+            child,
+            log,
+        })
+    }
+
+    pub fn pid(&self) -> i32 {
+        self.child.id() as i32
+    }
+
+    pub fn signal(&self, sig: i32) {
+        // SAFETY: plain kill(2) on our own child's pid.
+        unsafe { libc::kill(self.pid(), sig) };
+    }
+
+    /// Waits for exit up to `timeout`; panics with the log tail if it does not exit.
+    pub fn wait(&mut self, timeout: Duration) -> ExitStatus {
+        self.try_wait_for(timeout).unwrap_or_else(|| {
+            let _ = self.child.kill();
+            panic!(
+                "{} did not exit within {timeout:?}; log:\n{}",
+                self.name,
+                self.log_tail()
+            )
+        })
+    }
+
+    /// Waits for exit up to `timeout`; `None` if it is still running.
+    pub fn try_wait_for(&mut self, timeout: Duration) -> Option<ExitStatus> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().ok().flatten() {
+                return Some(status);
+            }
+            if Instant::now() > deadline {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    pub fn is_running(&mut self) -> bool {
+        self.child.try_wait().expect("try_wait").is_none()
+    }
+
+    pub fn log_tail(&self) -> String {
+        let text = std::fs::read_to_string(&self.log).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        lines[lines.len().saturating_sub(30)..].join("\n")
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Nodes of a namespace.
+pub fn nodes(ns: &str) -> NodeCensus {
+    census(&IpcConfig {
+        namespace: ns.into(),
+    })
+    .expect("valid namespace")
+}
+
+/// Waits until `n` nodes of the namespace are alive.
+pub fn wait_for_alive(ns: &str, n: usize, timeout: Duration) -> NodeCensus {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let c = nodes(ns);
+        if c.alive.len() >= n || Instant::now() > deadline {
+            return c;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Shared-memory files the namespace left in /dev/shm, except the per-namespace node counter
+/// that iceoryx2 keeps on purpose (`..._node.<version>.global_mgmt`).
+pub fn leftover_shm(ns: &str) -> Vec<String> {
+    let prefix = format!("iox2_{ns}_");
+    std::fs::read_dir("/dev/shm")
+        .map(|rd| {
+            rd.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with(&prefix) && !n.ends_with(".global_mgmt"))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Removes the namespace's node counter segment, the one file iceoryx2 keeps by design.
+pub fn remove_namespace_files(ns: &str) {
+    let prefix = format!("iox2_{ns}_");
+    if let Ok(rd) = std::fs::read_dir("/dev/shm") {
+        for e in rd.flatten() {
+            if e.file_name().to_string_lossy().starts_with(&prefix) {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+}
+
+/// Reads a JSON summary written by a service.
+pub fn read_json(path: &std::path::Path) -> serde_json::Value {
+    let text =
+        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("parsing {}: {e}", path.display()))
+}
