@@ -1,6 +1,7 @@
 //! The paper's claims, measured on any run: per-layer slowness of R_l(t), and the figure strip.
 
 use crate::data::Dataset;
+use crate::eval::{EvalMetrics, evaluate};
 use crate::model::{ModelError, MtaPredNet};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -192,6 +193,94 @@ fn autocorr_time(y: &Tensor) -> f64 {
         tau += 2.0 * rho;
     }
     tau
+}
+
+/// Everything a run is judged by, computed on held-out data from any model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AnalysisReport {
+    /// mse, copy_last_mse, mean_frame_mse, mse_shuffled_actions, ...
+    #[serde(flatten)]
+    pub eval: EvalMetrics,
+    /// Per layer, bottom first.
+    pub slowness: Vec<LayerSlowness>,
+    /// The paper's claim, top layer vs bottom layer, judged on the units' delta ratio (the
+    /// quantity tau integrates); `None` with one layer or when slowness was not measured.
+    pub top_slower_than_bottom: Option<bool>,
+    /// The same comparison under each index, since they can disagree (R also follows the
+    /// action's switches through the unit weights).
+    pub top_slower_than_bottom_by: Option<SlownessComparison>,
+    /// What figure.png shows; `None` if it could not be drawn (see `notes`).
+    pub figure: Option<FigureInfo>,
+    /// Parts that could not be computed, and why (the rest is still reported).
+    pub notes: Vec<String>,
+}
+
+/// Is the top layer slower than the bottom one, per index (true = slower)?
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SlownessComparison {
+    pub units_delta_ratio: bool,
+    pub units_pc_autocorr_time: bool,
+    pub r_delta_ratio: bool,
+    pub r_pc_autocorr_time: bool,
+}
+
+/// Evaluates `model` on `held` (with the action shuffle), measures slowness on up to 64
+/// sequences, and draws the strip of sequence `figure_sequence` at `frames` into `figure_path`.
+/// Only the evaluation is fatal; a sequence too short for the slowness or the frames is noted.
+pub fn analyse(
+    model: &MtaPredNet,
+    held: &Dataset,
+    frames: &[usize],
+    figure_sequence: i64,
+    figure_path: &Path,
+    seed: u64,
+) -> Result<AnalysisReport, ModelError> {
+    let eval = evaluate(model, held, 64, Some(seed))?;
+    let mut notes = Vec::new();
+    let slowness = slowness(model, held, 64, 5).unwrap_or_else(|e| {
+        notes.push(format!("slowness not measured: {e}"));
+        Vec::new()
+    });
+    let by = match (slowness.first(), slowness.last()) {
+        (Some(b), Some(t)) if slowness.len() > 1 => Some(SlownessComparison {
+            units_delta_ratio: t.units.delta_ratio < b.units.delta_ratio,
+            units_pc_autocorr_time: t.units.pc_autocorr_time > b.units.pc_autocorr_time,
+            r_delta_ratio: t.r.delta_ratio < b.r.delta_ratio,
+            r_pc_autocorr_time: t.r.pc_autocorr_time > b.r.pc_autocorr_time,
+        }),
+        _ => None,
+    };
+    let seq = figure_sequence.clamp(0, held.len() - 1);
+    let figure = match figure_strip(
+        model,
+        &held.images.get(seq),
+        &held.actions.get(seq),
+        frames,
+        figure_path,
+    ) {
+        Ok(info) => {
+            if !info.frames_missing.is_empty() {
+                notes.push(format!(
+                    "figure: frames {:?} do not exist in a {}-step sequence and were left out",
+                    info.frames_missing,
+                    held.steps()
+                ));
+            }
+            Some(info)
+        }
+        Err(e) => {
+            notes.push(format!("figure not drawn: {e}"));
+            None
+        }
+    };
+    Ok(AnalysisReport {
+        eval,
+        slowness,
+        top_slower_than_bottom: by.as_ref().map(|c| c.units_delta_ratio),
+        top_slower_than_bottom_by: by,
+        figure,
+        notes,
+    })
 }
 
 /// Writes the default figure (first sequence of `data`) into `path`; convenience for callers

@@ -6,14 +6,14 @@
 
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mtanet_models::analysis::{self, LayerSlowness};
+use mtanet_models::analysis;
 use mtanet_models::data::Dataset;
 use mtanet_models::eval::evaluate;
-use mtanet_models::figure::{DEFAULT_FRAMES, FigureInfo};
+use mtanet_models::figure::DEFAULT_FRAMES;
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
@@ -59,9 +59,10 @@ struct RunConfig {
 
 #[derive(Serialize)]
 struct Metrics<'a> {
-    /// Held-out metrics of the final weights (mse, copy_last_mse, mean_frame_mse, mse_shuffled_actions, ...).
+    /// Held-out metrics of the final weights (mse, copy_last_mse, mean_frame_mse,
+    /// mse_shuffled_actions, slowness, figure, notes).
     #[serde(flatten)]
-    eval: &'a mtanet_models::eval::EvalMetrics,
+    report: &'a analysis::AnalysisReport,
     updates: u64,
     refused_updates: u64,
     epochs: u64,
@@ -69,10 +70,6 @@ struct Metrics<'a> {
     parameters: i64,
     train_sequences: i64,
     eval_sequences: i64,
-    slowness: Vec<LayerSlowness>,
-    /// The top layer's R has a longer PC autocorrelation time than the bottom's (the paper's claim).
-    top_slower_than_bottom: Option<bool>,
-    figure: Option<FigureInfo>,
     model: &'a ModelConfig,
     train: &'a TrainConfig,
 }
@@ -196,29 +193,21 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         .save_checkpoint(&out("model.safetensors"), last_loss)
         .context("saving model")?;
 
-    let eval = trainer.evaluate(&held).context("final evaluation")?;
-    let slowness = match analysis::slowness(&trainer.model, &held, 64, 5) {
-        Ok(s) => s,
-        Err(e) => {
-            tracing::warn!("slowness not measured: {e}");
-            Vec::new()
-        }
-    };
-    let top_slower_than_bottom = match (slowness.first(), slowness.last()) {
-        (Some(b), Some(t)) if slowness.len() > 1 => {
-            Some(t.r.pc_autocorr_time > b.r.pc_autocorr_time)
-        }
-        _ => None,
-    };
-    let figure = draw_figure(
-        &trainer,
+    let report = analysis::analyse(
+        &trainer.model,
         &held,
         &args.frames,
         args.figure_sequence,
         &out("figure.png"),
-    );
+        run.train.seed,
+    )
+    .context("final evaluation")?;
+    for note in &report.notes {
+        tracing::warn!("{note}");
+    }
+    let eval = &report.eval;
     let metrics = Metrics {
-        eval: &eval,
+        report: &report,
         updates: trainer.step(),
         refused_updates: trainer.refused(),
         epochs: epochs_done,
@@ -226,9 +215,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         parameters,
         train_sequences: train.len(),
         eval_sequences: held.len(),
-        slowness,
-        top_slower_than_bottom,
-        figure,
         model: &run.model,
         train: &run.train,
     };
@@ -280,37 +266,4 @@ fn adopt_data_shape(cfg: &mut ModelConfig, train: &Dataset, held: &Dataset) -> a
         tracing::info!(offset = ?cfg.action_offset, scale = ?cfg.action_scale, "action normalisation from the training data");
     }
     Ok(())
-}
-
-fn draw_figure(
-    trainer: &Trainer,
-    held: &Dataset,
-    frames: &[usize],
-    seq: i64,
-    path: &Path,
-) -> Option<FigureInfo> {
-    let seq = seq.clamp(0, held.len() - 1);
-    match analysis::figure_strip(
-        &trainer.model,
-        &held.images.get(seq),
-        &held.actions.get(seq),
-        frames,
-        path,
-    ) {
-        Ok(info) => {
-            if !info.frames_missing.is_empty() {
-                tracing::warn!(
-                    missing = ?info.frames_missing,
-                    steps = held.steps(),
-                    "figure: frames past the end of the {}-step sequence left out",
-                    held.steps()
-                );
-            }
-            Some(info)
-        }
-        Err(e) => {
-            tracing::warn!("figure not drawn: {e}");
-            None
-        }
-    }
 }
