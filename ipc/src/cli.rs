@@ -2,8 +2,13 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
 use crate::config::{ConfigError, ConfigFile};
 use crate::node::IpcConfig;
+use crate::shutdown::Shutdown;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct CommonArgs {
@@ -27,5 +32,28 @@ impl CommonArgs {
             ipc.namespace = ns.clone();
         }
         Ok((file, ipc))
+    }
+}
+
+impl CommonArgs {
+    /// The start of every service's `main`: signal handlers first (a signal during start-up must
+    /// already stop cleanly), then the config file with the service's own `section`.
+    pub fn start<C: DeserializeOwned + Default>(
+        &self,
+        section: &str,
+    ) -> anyhow::Result<(C, IpcConfig, Shutdown)> {
+        let shutdown = Shutdown::install().context("installing signal handlers")?;
+        let (file, ipc) = self.load()?;
+        let cfg = file.section(section)?;
+        Ok((cfg, ipc, shutdown))
+    }
+
+    /// Writes the run summary if `--summary` was given.
+    pub fn write_summary(&self, summary: &impl Serialize) -> anyhow::Result<()> {
+        if let Some(path) = &self.summary {
+            crate::report::write_json(path, summary)
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+        Ok(())
     }
 }

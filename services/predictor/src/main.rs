@@ -1,11 +1,9 @@
 //! `mta-predictor`: answers each observation from the simulator with a wheel command.
 
-use anyhow::Context;
 use clap::Parser;
 use mtanet_ipc::cli::CommonArgs;
 use mtanet_ipc::node::create_node;
-use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::{logging, report, systemd};
+use mtanet_ipc::{logging, systemd};
 use mtanet_predictor::config::PredictorConfig;
 use mtanet_predictor::service;
 
@@ -24,9 +22,7 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
-    let shutdown = Shutdown::install().context("installing signal handlers")?;
-    let (file, ipc) = args.common.load()?;
-    let cfg: PredictorConfig = file.section("predictor")?;
+    let (cfg, ipc, shutdown): (PredictorConfig, _, _) = args.common.start("predictor")?;
     tch::set_num_threads(cfg.torch_threads);
     let node = create_node(&ipc, "mta-predictor")?;
     let ports = service::Ports::open(&node)?;
@@ -36,9 +32,5 @@ fn main() -> anyhow::Result<()> {
     systemd::stopping();
     let summary = summary?;
     tracing::info!(answered = summary.commands_sent, gaps = summary.step_gaps, compute = %summary.compute, "predictor stopped");
-    if let Some(path) = &args.common.summary {
-        report::write_json(path, &summary)
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
+    args.common.write_summary(&summary)
 }

@@ -7,7 +7,6 @@ use anyhow::Context;
 use clap::Parser;
 use mtanet_ipc::cli::CommonArgs;
 use mtanet_ipc::node::create_node;
-use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{logging, report, systemd};
 use mtanet_scenes::{Teacher, World};
 use mtanet_simulator::config::{Mode, SimulatorConfig};
@@ -69,9 +68,7 @@ fn parse_mode(s: &str) -> Result<Mode, String> {
 fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
-    let shutdown = Shutdown::install().context("installing signal handlers")?;
-    let (file, ipc) = args.common.load()?;
-    let mut cfg: SimulatorConfig = file.section("simulator")?;
+    let (mut cfg, ipc, shutdown): (SimulatorConfig, _, _) = args.common.start("simulator")?;
     if let Some(t) = args.track {
         cfg.scene.track = t;
     }
@@ -133,9 +130,5 @@ fn main() -> anyhow::Result<()> {
         round_trip = %summary.round_trip,
         "simulator stopped"
     );
-    if let Some(path) = args.common.summary {
-        report::write_json(&path, &summary)
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
+    args.common.write_summary(&summary)
 }

@@ -118,52 +118,42 @@ fn teacher_report_on_the_oval() {
     assert!(r["real_time_factor"].as_f64().unwrap() > 1.0, "{r}");
 }
 
+/// Runs the simulator binary, expecting failure; returns its stderr.
+fn failing_run(args: &[&std::ffi::OsStr]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "expected a failure for {args:?}");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
 #[test]
 fn bad_inputs_fail_with_the_file_named() {
     let dir = tempfile::tempdir().unwrap();
-    let missing = dir.path().join("nope.csv");
-    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
-        .args([
+    let teacher_run = |track: &Path| {
+        let args = [
             "--teacher-only",
             "--sim-seconds",
             "1",
             "--report",
             "/dev/null",
             "--track",
-        ])
-        .arg(&missing)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("nope.csv"), "{err}");
+        ];
+        let mut v: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_ref()).collect();
+        v.push(track.as_os_str());
+        failing_run(&v)
+    };
+    let err = teacher_run(&dir.path().join("nope.csv"));
+    assert!(err.contains("nope.csv"), "{err}");
 
     let bad = dir.path().join("two.csv");
     std::fs::write(&bad, "x,y\n0,0\n1,0\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
-        .args([
-            "--teacher-only",
-            "--sim-seconds",
-            "1",
-            "--report",
-            "/dev/null",
-            "--track",
-        ])
-        .arg(&bad)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("two.csv"), "{err}");
+    let err = teacher_run(&bad);
+    assert!(err.contains("two.csv"), "{err}");
 
     let cfg = dir.path().join("bad.toml");
     std::fs::write(&cfg, "[simulator]\nmode = \"warp\"\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
-        .arg("--config")
-        .arg(&cfg)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("bad.toml") && err.contains("mode"),
-        "{err}"
-    );
+    let err = failing_run(&["--config".as_ref(), cfg.as_os_str()]);
+    assert!(err.contains("bad.toml") && err.contains("mode"), "{err}");
 }

@@ -1,11 +1,9 @@
 //! `mta-trainer`: learns from the replay chunks the simulator streams through shared memory.
 
-use anyhow::Context;
 use clap::Parser;
 use mtanet_ipc::cli::CommonArgs;
 use mtanet_ipc::node::create_node;
-use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::{logging, report, systemd};
+use mtanet_ipc::{logging, systemd};
 use mtanet_trainer::config::TrainerConfig;
 use mtanet_trainer::service;
 
@@ -24,9 +22,7 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
-    let shutdown = Shutdown::install().context("installing signal handlers")?;
-    let (file, ipc) = args.common.load()?;
-    let cfg: TrainerConfig = file.section("trainer")?;
+    let (cfg, ipc, shutdown): (TrainerConfig, _, _) = args.common.start("trainer")?;
     tch::set_num_threads(cfg.torch_threads);
     let node = create_node(&ipc, "mta-trainer")?;
     let ports = service::Ports::open(&node)?;
@@ -40,9 +36,5 @@ fn main() -> anyhow::Result<()> {
         lost = summary.chunks_lost,
         "trainer stopped"
     );
-    if let Some(path) = &args.common.summary {
-        report::write_json(path, &summary)
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
+    args.common.write_summary(&summary)
 }
