@@ -153,7 +153,14 @@ fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
         &["--namespace", &ns, "--summary", arg(&p2s)],
         dir.path(),
     );
-    std::thread::sleep(Duration::from_millis(1000));
+    // libtorch takes a while to load under load; count from when the new node is up.
+    let up = wait_for_alive(&ns, 3, Duration::from_secs(30));
+    assert_eq!(
+        up.alive.len(),
+        3,
+        "replacement predictor did not come up: {up:?}"
+    );
+    std::thread::sleep(Duration::from_millis(500));
     for p in [&sim, &predictor2, &trainer] {
         p.signal(SIGTERM);
     }

@@ -11,7 +11,8 @@ pub enum Mode {
     /// Each step waits for the predictor's command for that step (bounded): reproducible runs,
     /// as fast as the slowest process.
     Lockstep,
-    /// Steps at 50 Hz wall clock with whatever command arrived last, like a real robot.
+    /// Steps at 50 Hz wall clock like a real robot; a command later than half a period counts
+    /// as missed.
     Realtime,
 }
 
@@ -31,7 +32,8 @@ pub enum MissPolicy {
 #[serde(default, deny_unknown_fields)]
 pub struct SimulatorConfig {
     pub mode: Mode,
-    /// Lockstep: how long a step waits for its command before the miss policy applies.
+    /// How long a step waits for its command before the miss policy applies (realtime: at most
+    /// half a control period).
     pub command_timeout_ms: u64,
     pub on_missed_command: MissPolicy,
     /// Lockstep: wait this long at start for a predictor (and a trainer, if expected) to connect;

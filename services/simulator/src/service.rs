@@ -84,6 +84,14 @@ pub fn run(
     let mut chunk = ChunkBuilder::default();
     let mut last_cmd = [0.0f32; 2];
     let mut consecutive_misses = 0u32;
+    // Realtime still waits for the answer to the frame just sent, but never past half a period:
+    // the 50 Hz tick must hold even when the predictor is slow.
+    let command_wait = match cfg.mode {
+        Mode::Lockstep => Duration::from_millis(cfg.command_timeout_ms),
+        Mode::Realtime => {
+            Duration::from_millis(cfg.command_timeout_ms).min(Duration::from_secs_f64(period / 2.0))
+        }
+    };
     let start = Instant::now();
     let mut last_log = start;
     let mut step = 0u64;
@@ -93,13 +101,16 @@ pub fn run(
         drive.record(&sensors.truth);
         let obs_stamp = publish_observation(ports, step, world.time_s(), &sensors)?;
         let predictor = ports.commands.publishers() > 0;
-        let answer = match (predictor, cfg.mode) {
-            (false, _) => None,
-            (true, Mode::Lockstep) => {
-                let timeout = Duration::from_millis(cfg.command_timeout_ms);
-                await_command(ports, step, timeout, shutdown, &mut summary.stale_commands)?
-            }
-            (true, Mode::Realtime) => ports.commands.latest()?,
+        let answer = if predictor {
+            await_command(
+                ports,
+                step,
+                command_wait,
+                shutdown,
+                &mut summary.stale_commands,
+            )?
+        } else {
+            None
         };
         let cmd = match answer {
             Some(c) => {
