@@ -1,6 +1,14 @@
 //! MTA-PredNet (multiple-timescale, action-modulated PredNet) in tch: the model, its training,
 //! checkpoints, data sets, analysis and figures.
 //!
+//! - Predictor: build from a checkpoint (`checkpoint::from_bytes(&bytes)?.build()?`), keep a
+//!   [`State`], call [`MtaPredNet::step`] with each frame and the action that led to it, and
+//!   [`MtaPredNet::predict_candidates`] to compare K next actions. Run under
+//!   `tch::no_grad_guard()` so the state carries no autograd graph.
+//! - Trainer: [`Trainer::update`] on `[B, T, H, W]` windows (or [`Trainer::update_from`] to carry
+//!   the state across windows), [`Trainer::checkpoint_bytes`] to publish weights.
+//! - Offline: `mta train` / `mta synth`, [`analysis::analyse`] for metrics, slowness and figure.
+//!
 //! libtorch should run with one intra-op thread (`tch::set_num_threads(1)`): on 2 shared cores
 //! two threads collapse 5-50x when another process holds a core (FACTS.md), and at 8x12 the ops
 //! are too small to gain from splitting.
