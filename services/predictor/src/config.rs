@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::active_inference::ActiveInferenceConfig;
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PredictorConfig {
@@ -14,6 +16,8 @@ pub struct PredictorConfig {
     /// libtorch intra-op threads. One: on these tiny tensors dispatch dominates, and a second
     /// thread collapses throughput when another process holds the other core (FACTS.md).
     pub torch_threads: i32,
+    /// `[predictor.active_inference]`: model-based control once the model is trusted.
+    pub active_inference: ActiveInferenceConfig,
 }
 
 impl Default for PredictorConfig {
@@ -23,6 +27,7 @@ impl Default for PredictorConfig {
             turn: 6.0,
             log_every_s: 5.0,
             torch_threads: 1,
+            active_inference: ActiveInferenceConfig::default(),
         }
     }
 }

@@ -10,11 +10,12 @@ use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsReceiver;
-use mtanet_ipc::{Command, Observation, names, stamp};
+use mtanet_ipc::{Command, CommandSource, Observation, names, stamp};
 use serde::{Deserialize, Serialize};
 
 use crate::config::PredictorConfig;
-use crate::policy::Reactive;
+use crate::policy::Policy;
+use crate::world_model::WorldModel;
 
 pub struct Ports {
     pub observations: Receiver<Observation>,
@@ -40,7 +41,15 @@ pub struct Summary {
     /// Observations whose step did not follow the previous one (lost or reordered).
     pub step_gaps: u64,
     pub weights_received: u64,
+    /// Weights that failed to decode or did not fit; the previous model stayed in use.
+    pub weights_rejected: u64,
     pub model_version: u64,
+    /// Steps decided by active inference / by the reactive rule.
+    pub active_inference_steps: u64,
+    pub reactive_steps: u64,
+    /// Recent next-frame MSE of the model and of copying the last frame (the bar to beat).
+    pub model_mse: Option<f64>,
+    pub copy_last_mse: Option<f64>,
     /// Observation published -> command decided (transport in + own compute).
     pub observation_age: LatencySummary,
     /// Own compute per step (policy only).
@@ -51,7 +60,7 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
     let waitset = create_waitset()?;
     let obs_guard = waitset.attach_notification(ports.observations.listener())?;
     let weights_guard = waitset.attach_notification(ports.weights.listener())?;
-    let mut reactive = Reactive::new(cfg);
+    let mut policy = Policy::new(cfg);
     let mut summary = Summary::default();
     let (mut age, mut compute) = (LatencyStats::new(), LatencyStats::new());
     let mut expected_step: Option<u64> = None;
@@ -64,14 +73,14 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
             let result = if id.has_event_from(&obs_guard) {
                 answer_observations(
                     ports,
-                    &mut reactive,
+                    &mut policy,
                     &mut summary,
                     &mut expected_step,
                     &mut age,
                     &mut compute,
                 )
             } else if id.has_event_from(&weights_guard) {
-                receive_weights(ports, &mut summary)
+                receive_weights(ports, &mut policy, &mut summary)
             } else {
                 Ok(())
             };
@@ -94,6 +103,10 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
     if let Some(e) = failure {
         return Err(e);
     }
+    if let Some(w) = &policy.world {
+        summary.model_mse = w.model_mse.get();
+        summary.copy_last_mse = w.copy_mse.get();
+    }
     summary.observation_age = age.summary();
     summary.compute = compute.summary();
     Ok(summary)
@@ -101,7 +114,7 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
 
 fn answer_observations(
     ports: &Ports,
-    reactive: &mut Reactive,
+    policy: &mut Policy,
     summary: &mut Summary,
     expected_step: &mut Option<u64>,
     age: &mut LatencyStats,
@@ -117,7 +130,11 @@ fn answer_observations(
         }
         *expected_step = Some(obs.step + 1);
         let t0 = Instant::now();
-        let (wheels, source) = reactive.act(&obs);
+        let (wheels, source) = policy.act(&obs)?;
+        match source {
+            CommandSource::ActiveInference => summary.active_inference_steps += 1,
+            _ => summary.reactive_steps += 1,
+        }
         let compute_ns = t0.elapsed().as_nanos() as u64;
         ports.commands.send_with(|c| {
             c.step = obs.step;
@@ -135,11 +152,35 @@ fn answer_observations(
     Ok(())
 }
 
-fn receive_weights(ports: &Ports, summary: &mut Summary) -> anyhow::Result<()> {
-    if let Some((version, len)) = ports.weights.latest(|h, bytes| (h.version, bytes.len()))? {
+fn receive_weights(
+    ports: &Ports,
+    policy: &mut Policy,
+    summary: &mut Summary,
+) -> anyhow::Result<()> {
+    let outcome = ports.weights.latest(|h, bytes| {
+        let result = match policy.world.as_mut() {
+            Some(world) => world.update(bytes, h.version),
+            None => WorldModel::from_bytes(bytes, h.version).map(|w| policy.world = Some(w)),
+        };
+        (h.version, h.train_step, bytes.len(), result)
+    })?;
+    if let Some((version, train_step, len, result)) = outcome {
         summary.weights_received += 1;
-        summary.model_version = version;
-        tracing::info!(version, bytes = len, "weights received");
+        match result {
+            Ok(()) => {
+                summary.model_version = version;
+                tracing::info!(version, train_step, bytes = len, "weights loaded");
+            }
+            Err(e) => {
+                // A damaged or mismatched checkpoint must not stop the car: keep what we had.
+                summary.weights_rejected += 1;
+                tracing::error!(
+                    version,
+                    bytes = len,
+                    "rejected weights, keeping the previous model: {e}"
+                );
+            }
+        }
     }
     Ok(())
 }

@@ -2,5 +2,6 @@
 //! the model work lands) trains MTA-PredNet on it and publishes weights to the predictor.
 
 pub mod config;
+pub mod learner;
 pub mod replay;
 pub mod service;

@@ -24,6 +24,11 @@ fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let (cfg, ipc, shutdown): (TrainerConfig, _, _) = args.common.start("trainer")?;
     tch::set_num_threads(cfg.torch_threads);
+    // The predictor's latency matters more than training speed: yield the CPU to it.
+    // SAFETY: setpriority(2) on this process only.
+    if unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, cfg.nice) } != 0 {
+        tracing::warn!(nice = cfg.nice, "could not lower the trainer's priority");
+    }
     let node = create_node(&ipc, "mta-trainer")?;
     let ports = service::Ports::open(&node)?;
     systemd::ready("trainer running");
@@ -34,6 +39,8 @@ fn main() -> anyhow::Result<()> {
     tracing::info!(
         chunks = summary.chunks_received,
         lost = summary.chunks_lost,
+        updates = summary.updates,
+        published = summary.weights_published,
         "trainer stopped"
     );
     args.common.write_summary(&summary)

@@ -1,8 +1,10 @@
-//! The trainer loop: block in a WaitSet on replay chunks and copy them into the replay buffer.
+//! The trainer loop: copy replay chunks from shared memory into the replay buffer, and between
+//! arrivals train one update at a time, publishing weights as they improve.
 
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
+use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
@@ -12,6 +14,7 @@ use mtanet_ipc::{ReplayChunk, names};
 use serde::{Deserialize, Serialize};
 
 use crate::config::TrainerConfig;
+use crate::learner::Learner;
 use crate::replay::ReplayBuffer;
 
 pub struct Ports {
@@ -36,17 +39,37 @@ pub struct Summary {
     pub chunks_lost: u64,
     pub steps_received: u64,
     pub buffered_sequences: usize,
+    /// Accepted training updates (including those of a resumed checkpoint).
+    pub updates: u64,
+    /// Updates refused by the non-finite guard.
+    pub updates_refused: u64,
+    pub last_loss: Option<f64>,
+    pub weights_published: u64,
+    /// Wall time of one training update.
+    pub update_time: LatencySummary,
 }
 
 pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
     let waitset = create_waitset()?;
     let replay_guard = waitset.attach_notification(ports.replay.listener())?;
     let mut buffer = ReplayBuffer::new(cfg.replay_capacity);
+    let mut learner = Learner::new(cfg)?;
+    if learner.has_trained_weights() {
+        learner.publish(&ports.weights)?;
+    }
     let mut steps = 0u64;
+    let mut update_time = LatencyStats::new();
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
     let mut failure = None;
     while !shutdown.requested() && failure.is_none() {
+        // With data to learn from, only look for new chunks and go on training; otherwise block.
+        let training = learner.ready(&buffer);
+        let timeout = if training {
+            Duration::ZERO
+        } else {
+            Duration::from_millis(100)
+        };
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
             if id.has_event_from(&replay_guard) {
                 let res = ports.replay.drain_events().and_then(|_| {
@@ -62,7 +85,12 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
             }
             CallbackProgression::Continue
         };
-        waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
+        waitset.wait_and_process_once_with_timeout(&mut on_event, timeout)?;
+        if training && failure.is_none() {
+            let t0 = Instant::now();
+            learner.train_once(&buffer, &ports.weights)?;
+            update_time.record_ns(t0.elapsed().as_nanos() as u64);
+        }
         watchdog.pet();
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
@@ -70,6 +98,9 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
                 chunks = buffer.received(),
                 lost = buffer.lost(),
                 buffered = buffer.len(),
+                updates = learner.updates(),
+                loss = ?learner.last_loss(),
+                update = %update_time.summary(),
                 "running"
             );
         }
@@ -82,5 +113,10 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
         chunks_lost: buffer.lost(),
         steps_received: steps,
         buffered_sequences: buffer.len(),
+        updates: learner.updates(),
+        updates_refused: learner.refused,
+        last_loss: learner.last_loss(),
+        weights_published: learner.published(),
+        update_time: update_time.summary(),
     })
 }

@@ -1,0 +1,156 @@
+//! Online learning: batches sampled from the replay buffer, one Adam update at a time, weights
+//! published to the predictor every few updates and kept on disk for restarts.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use mtanet_ipc::weights_topic::WeightsSender;
+use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_PIXELS, IMAGE_WIDTH, WeightsHeader};
+use mtanet_models::Trainer;
+use mtanet_models::checkpoint::SCHEMA_VERSION;
+use mtanet_models::train::UpdateStats;
+use rand::SeedableRng;
+use rand::seq::IndexedRandom;
+use rand_chacha::ChaCha8Rng;
+use tch::Tensor;
+
+use crate::config::TrainerConfig;
+use crate::replay::{ReplayBuffer, Sequence};
+
+pub struct Learner {
+    trainer: Trainer,
+    rng: ChaCha8Rng,
+    min_sequences: usize,
+    publish_every: u64,
+    checkpoint: Option<PathBuf>,
+    version: u64,
+    last_loss: Option<f64>,
+    pub refused: u64,
+}
+
+impl Learner {
+    /// Builds the model; resumes from `checkpoint_dir/latest.safetensors` when present.
+    pub fn new(cfg: &TrainerConfig) -> anyhow::Result<Self> {
+        let mut trainer = Trainer::f_new(&cfg.model, &cfg.train)
+            .context("building the model from [trainer.model]")?;
+        let checkpoint = cfg
+            .checkpoint_dir
+            .as_ref()
+            .map(|d| d.join("latest.safetensors"));
+        if let Some(path) = checkpoint.as_ref().filter(|p| p.exists()) {
+            // A checkpoint that does not match is an error, not a silent fresh start: the operator
+            // changed the model config or the file is damaged, and must decide.
+            let meta = trainer
+                .resume(path)
+                .with_context(|| format!("resuming from {}", path.display()))?;
+            tracing::info!(path = %path.display(), step = meta.step, "resumed training");
+        }
+        Ok(Self {
+            trainer,
+            rng: ChaCha8Rng::seed_from_u64(cfg.train.seed),
+            min_sequences: cfg.min_sequences.max(1),
+            publish_every: cfg.publish_every_updates.max(1),
+            checkpoint,
+            version: 0,
+            last_loss: None,
+            refused: 0,
+        })
+    }
+
+    pub fn updates(&self) -> u64 {
+        self.trainer.step()
+    }
+
+    pub fn last_loss(&self) -> Option<f64> {
+        self.last_loss
+    }
+
+    pub fn published(&self) -> u64 {
+        self.version
+    }
+
+    pub fn ready(&self, buffer: &ReplayBuffer) -> bool {
+        buffer.len() >= self.min_sequences
+    }
+
+    /// One update on a random batch; publishes when due. A refused (non-finite) update is logged
+    /// and counted, the weights stay as they were.
+    pub fn train_once(
+        &mut self,
+        buffer: &ReplayBuffer,
+        weights: &WeightsSender,
+    ) -> anyhow::Result<Option<UpdateStats>> {
+        let seqs: Vec<&Sequence> = buffer.sequences().collect();
+        let batch = (self.trainer.train_cfg.batch_size.max(1) as usize).min(seqs.len());
+        let picked: Vec<&Sequence> = seqs
+            .choose_multiple(&mut self.rng, batch)
+            .copied()
+            .collect();
+        let (images, actions) = to_tensors(&picked);
+        match self.trainer.update(&images, &actions) {
+            Ok(stats) => {
+                self.last_loss = Some(stats.loss);
+                if stats.step % self.publish_every == 0 {
+                    self.publish(weights)?;
+                }
+                Ok(Some(stats))
+            }
+            Err(
+                e @ (mtanet_models::train::TrainError::NonFiniteLoss { .. }
+                | mtanet_models::train::TrainError::NonFiniteGradient { .. }),
+            ) => {
+                self.refused += 1;
+                tracing::warn!("{e}");
+                Ok(None)
+            }
+            Err(e) => Err(e).context("training update"),
+        }
+    }
+
+    /// Sends the current weights to the predictor (and to disk when configured).
+    pub fn publish(&mut self, weights: &WeightsSender) -> anyhow::Result<()> {
+        let bytes = self
+            .trainer
+            .checkpoint_bytes(self.last_loss)
+            .context("serialising the checkpoint")?;
+        self.version += 1;
+        let header = WeightsHeader {
+            version: self.version,
+            train_step: self.trainer.step(),
+            loss: self.last_loss.unwrap_or(f64::NAN) as f32,
+            schema: SCHEMA_VERSION,
+            ..Default::default()
+        };
+        weights.send(header, &bytes)?;
+        if let Some(path) = &self.checkpoint {
+            self.trainer
+                .save_checkpoint(path, self.last_loss)
+                .with_context(|| format!("saving {}", path.display()))?;
+        }
+        tracing::info!(version = self.version, step = self.trainer.step(), loss = ?self.last_loss, bytes = bytes.len(), "weights published");
+        Ok(())
+    }
+
+    /// True when resuming loaded weights worth sending before the first new update.
+    pub fn has_trained_weights(&self) -> bool {
+        self.trainer.step() > 0
+    }
+}
+
+/// `[B, T, H, W]` images and `[B, T, A]` actions; sequences shorter than the longest are cut to
+/// the shortest so the batch is rectangular.
+fn to_tensors(seqs: &[&Sequence]) -> (Tensor, Tensor) {
+    let t = seqs.iter().map(|s| s.images.len()).min().unwrap_or(0);
+    let b = seqs.len();
+    let mut img: Vec<f32> = Vec::with_capacity(b * t * IMAGE_PIXELS);
+    let mut act: Vec<f32> = Vec::with_capacity(b * t * ACTION_DIM);
+    for s in seqs {
+        img.extend(s.images[..t].iter().flatten());
+        act.extend(s.actions[..t].iter().flatten());
+    }
+    let (b, t) = (b as i64, t as i64);
+    (
+        Tensor::from_slice(&img).view([b, t, IMAGE_HEIGHT as i64, IMAGE_WIDTH as i64]),
+        Tensor::from_slice(&act).view([b, t, ACTION_DIM as i64]),
+    )
+}

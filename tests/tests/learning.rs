@@ -1,0 +1,143 @@
+//! The learning loop across processes: the trainer learns from replay chunks in shared memory and
+//! hands weights to the predictor, which loads them; damaged weights are refused without harm.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use mtanet_ipc::WeightsHeader;
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::weights_topic::WeightsSender;
+use mtanet_mta::stack::*;
+
+/// A small network and eager publishing, so a test sees weights within seconds.
+const FAST_TRAINER: &str = r#"
+[trainer]
+min_sequences = 4
+publish_every_updates = 2
+[trainer.model]
+channels = [4, 4, 4]
+a_channels = [1, 4, 4]
+action_offset = [8.0, 8.0]
+action_scale = [5.0, 5.0]
+[trainer.train]
+batch_size = 4
+"#;
+
+fn wait_for_log(p: &Proc, needle: &str, timeout: Duration) -> bool {
+    let deadline = Instant::now() + timeout;
+    while Instant::now() < deadline {
+        if std::fs::read_to_string(&p.log)
+            .unwrap_or_default()
+            .contains(needle)
+        {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    false
+}
+
+fn arg(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn trainer_weights_reach_the_predictor_and_damaged_ones_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("ln");
+    let cfg = dir.path().join("stack.toml");
+    std::fs::write(&cfg, FAST_TRAINER).unwrap();
+    let (trs, prs) = (
+        dir.path().join("trainer.json"),
+        dir.path().join("predictor.json"),
+    );
+    let common = ["--namespace", &ns, "--config", arg(&cfg)];
+    let mut trainer = Proc::spawn(
+        "mta-trainer",
+        &[&common[..], &["--summary", arg(&trs)]].concat(),
+        dir.path(),
+    );
+    let mut predictor = Proc::spawn(
+        "mta-predictor",
+        &[&common[..], &["--summary", arg(&prs)]].concat(),
+        dir.path(),
+    );
+    wait_for_alive(&ns, 2, Duration::from_secs(30));
+    let mut sim = Proc::spawn(
+        "mta-simulator",
+        &[&common[..], &["--mode", "realtime"]].concat(),
+        dir.path(),
+    );
+
+    assert!(
+        wait_for_log(&predictor, "weights loaded", Duration::from_secs(120)),
+        "no weights reached the predictor.\ntrainer:\n{}\npredictor:\n{}",
+        trainer.log_tail(),
+        predictor.log_tail()
+    );
+    // The trainer stops publishing when we stop it; then a damaged blob arrives on the topic.
+    trainer.signal(libc::SIGTERM);
+    assert!(
+        trainer.wait(Duration::from_secs(30)).success(),
+        "{}",
+        trainer.log_tail()
+    );
+    {
+        let node = create_node(
+            &IpcConfig {
+                namespace: ns.clone(),
+            },
+            "bad-trainer",
+        )
+        .unwrap();
+        let sender = WeightsSender::open(&node).unwrap();
+        let header = WeightsHeader {
+            version: 999,
+            ..Default::default()
+        };
+        sender
+            .send(header, b"definitely not a safetensors checkpoint")
+            .unwrap();
+        assert!(
+            wait_for_log(&predictor, "rejected weights", Duration::from_secs(20)),
+            "{}",
+            predictor.log_tail()
+        );
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(
+        sim.is_running() && predictor.is_running(),
+        "a damaged checkpoint must not stop the stack"
+    );
+    for p in [&sim, &predictor] {
+        p.signal(libc::SIGTERM);
+    }
+    assert!(
+        sim.wait(Duration::from_secs(20)).success(),
+        "{}",
+        sim.log_tail()
+    );
+    assert!(
+        predictor.wait(Duration::from_secs(20)).success(),
+        "{}",
+        predictor.log_tail()
+    );
+
+    let t = read_json(&trs);
+    assert!(t["weights_published"].as_u64().unwrap() >= 1, "{t}");
+    assert!(t["updates"].as_u64().unwrap() >= 2, "{t}");
+    assert!(t["last_loss"].as_f64().unwrap().is_finite(), "{t}");
+    let p = read_json(&prs);
+    assert!(p["weights_received"].as_u64().unwrap() >= 2, "{p}");
+    assert_eq!(p["weights_rejected"], 1, "{p}");
+    let version = p["model_version"].as_u64().unwrap();
+    assert!(
+        (1..999).contains(&version),
+        "the damaged version must not be in use: {p}"
+    );
+    assert!(
+        p["model_mse"].as_f64().is_some(),
+        "the loaded model must be stepped: {p}"
+    );
+    remove_namespace_files(&ns);
+}
