@@ -28,6 +28,9 @@ pub enum ModelError {
     State(String),
 }
 
+/// One layer's new unit states: (h per unit, c per unit).
+type UnitStates = (Vec<Tensor>, Vec<Tensor>);
+
 #[derive(Debug)]
 pub struct MtaPredNet {
     /// Bottom layer first, at `layer{l}`.
@@ -104,11 +107,7 @@ impl MtaPredNet {
     }
 
     /// Top-down pass for every layer: ((h, c) per layer, R per layer), bottom first.
-    fn top_down(
-        &self,
-        state: &State,
-        action: &Tensor,
-    ) -> (Vec<(Vec<Tensor>, Vec<Tensor>)>, Vec<Tensor>) {
+    fn top_down(&self, state: &State, action: &Tensor) -> (Vec<UnitStates>, Vec<Tensor>) {
         let n = self.layers.len();
         let mut tops = Vec::with_capacity(n);
         let mut rs: Vec<Tensor> = Vec::with_capacity(n);
