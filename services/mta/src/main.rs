@@ -1,5 +1,6 @@
 //! `mta`: the operator CLI.
 
+mod figures;
 mod soak;
 mod status;
 mod synth;
@@ -22,6 +23,8 @@ struct Cli {
 enum Cmd {
     /// Train MTA-PredNet offline from a dataset .npz.
     Train(train::TrainArgs),
+    /// Regenerate the figure strip and analysis of a checkpoint on a dataset.
+    Figures(figures::FiguresArgs),
     /// Write a synthetic action-conditioned dataset .npz.
     Synth(synth::SynthArgs),
     /// Show the nodes and topics of a running stack.
@@ -34,6 +37,7 @@ fn main() -> anyhow::Result<()> {
     mtanet_ipc::logging::init();
     match Cli::parse().cmd {
         Cmd::Train(a) => train::run(a),
+        Cmd::Figures(a) => figures::run(a),
         Cmd::Synth(a) => synth::run(a),
         Cmd::Status(a) => status::run(a),
         Cmd::Soak(a) => soak::run(a),

@@ -18,9 +18,8 @@ use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
 pub struct TrainArgs {
-    /// Training data .npz (`images` [N,T,H,W] float32 in [0,1], `actions` [N,T,A] float32).
-    #[arg(long)]
-    /// (Several files, comma-separated or repeated, are concatenated.)
+    /// Training data .npz (`images` [N,T,H,W] float32 in [0,1], `actions` [N,T,A] float32);
+    /// several files, comma-separated or repeated, are concatenated.
     #[arg(long, value_delimiter = ',', required = true)]
     data: Vec<PathBuf>,
     /// Held-out data .npz (one or more); without it `train.eval_fraction` of --data is held out.
