@@ -86,6 +86,12 @@ fn main() -> anyhow::Result<()> {
     }
     cfg.expect_trainer |= args.expect_trainer;
 
+    if args.seed.is_some() && cfg.teacher.noise_std == 0.0 {
+        // Without noise the teacher is deterministic: every seed records the same data.
+        tracing::warn!(
+            "--seed has no effect while the teacher's noise is 0: add --noise STD (rad/s) for varied data"
+        );
+    }
     let (scene, teacher_cfg) = (&cfg.scene, &cfg.teacher);
     let mut world = World::new(scene)
         .with_context(|| format!("loading the scene for track {}", scene.track.display()))?;
