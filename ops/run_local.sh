@@ -29,7 +29,7 @@ run="$root/runs/$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$run"
 echo "[run] config $config; logs and summaries in $run"
 
-pids=()
+pids=(); timer=()
 start() { # name, args...
   local name=$1; shift
   # Own session: a terminal Ctrl-C reaches only this script, which then sends one SIGTERM each
@@ -40,6 +40,7 @@ start() { # name, args...
 }
 stop() {
   trap - INT TERM
+  kill "${timer[@]}" 2>/dev/null || true
   echo "[run] stopping: SIGTERM to ${pids[*]}"
   kill -TERM "${pids[@]}" 2>/dev/null || true
   local rc=0
@@ -57,11 +58,17 @@ start mta-simulator "${sim_extra[@]}"
 sleep 1
 "$bin/mta" status --config "$config" || true
 echo "[run] running; Ctrl-C to stop. Follow progress: tail -f $run/*.log"
+# Wait (interruptibly, so Ctrl-C/SIGTERM run the trap at once) for the timer or for a service
+# that exits on its own, which is an error worth reporting.
 if [ "$seconds" -gt 0 ]; then
-  sleep "$seconds"
-  stop
+  sleep "$seconds" &
+  timer=($!)
 fi
-# Wait for a signal (or for a service to exit on its own, which is an error worth reporting).
-wait -n "${pids[@]}" || true
-echo "[run] a service exited on its own; stopping the rest" >&2
+wait -n -p finished "${pids[@]}" "${timer[@]}" || true
+if [ "${#timer[@]}" -gt 0 ] && [ "$finished" = "${timer[0]}" ]; then
+  echo "[run] $seconds s are up"
+else
+  echo "[run] a service (pid $finished) exited on its own; stopping the rest" >&2
+  kill "${timer[@]}" 2>/dev/null || true
+fi
 stop

@@ -126,7 +126,7 @@ pub fn census(cfg: &IpcConfig) -> Result<NodeCensus, NodeError> {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ServiceEntry {
     pub name: String,
-    /// "PublishSubscribe", "Event", ...
+    /// "publish-subscribe", "event", ...
     pub pattern: String,
     /// Nodes attached (any state).
     pub nodes: usize,
@@ -140,11 +140,24 @@ pub fn services(cfg: &IpcConfig) -> Result<Vec<ServiceEntry>, NodeError> {
     let _ = ipc::Service::list(&config, |s| {
         out.push(ServiceEntry {
             name: s.static_details.name().as_str().to_string(),
-            pattern: format!("{:?}", s.static_details.messaging_pattern()),
+            pattern: pattern_name(s.static_details.messaging_pattern()).into(),
             nodes: s.dynamic_details.as_ref().map_or(0, |d| d.nodes.len()),
         });
         CallbackProgression::Continue
     });
     out.sort_by(|a, b| (&a.name, &a.pattern).cmp(&(&b.name, &b.pattern)));
     Ok(out)
+}
+
+fn pattern_name(
+    p: &iceoryx2::service::static_config::messaging_pattern::MessagingPattern,
+) -> &'static str {
+    use iceoryx2::service::static_config::messaging_pattern::MessagingPattern as P;
+    match p {
+        P::PublishSubscribe(_) => "publish-subscribe",
+        P::Event(_) => "event",
+        P::RequestResponse(_) => "request-response",
+        P::Blackboard(_) => "blackboard",
+        _ => "other",
+    }
 }

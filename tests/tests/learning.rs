@@ -42,11 +42,16 @@ fn arg(p: &Path) -> &str {
 }
 
 #[test]
-fn trainer_weights_reach_the_predictor_and_damaged_ones_are_refused() {
+fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("ln");
     let cfg = dir.path().join("stack.toml");
-    std::fs::write(&cfg, FAST_TRAINER).unwrap();
+    let ck_dir = dir.path().join("ck");
+    let config = FAST_TRAINER.replace(
+        "[trainer]\n",
+        &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
+    );
+    std::fs::write(&cfg, config).unwrap();
     let (trs, prs) = (
         dir.path().join("trainer.json"),
         dir.path().join("predictor.json"),
@@ -104,6 +109,45 @@ fn trainer_weights_reach_the_predictor_and_damaged_ones_are_refused() {
             predictor.log_tail()
         );
     }
+    assert!(
+        ck_dir.join("latest.safetensors").exists(),
+        "the trainer keeps its latest checkpoint on disk"
+    );
+
+    let loads = |p: &Proc| {
+        let log = std::fs::read_to_string(&p.log).unwrap_or_default();
+        log.matches("weights loaded").count()
+    };
+    let before = loads(&predictor);
+    // A restarted trainer resumes from disk and hands the predictor its weights at once.
+    let t2_dir = dir.path().join("t2");
+    std::fs::create_dir_all(&t2_dir).unwrap();
+    let mut trainer2 = Proc::spawn("mta-trainer", &common, &t2_dir);
+    assert!(
+        wait_for_log(&trainer2, "resumed training", Duration::from_secs(60)),
+        "{}",
+        trainer2.log_tail()
+    );
+    assert!(
+        wait_for_log(&trainer2, "weights published", Duration::from_secs(60)),
+        "{}",
+        trainer2.log_tail()
+    );
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while loads(&predictor) <= before && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(
+        loads(&predictor) > before,
+        "resumed weights did not reach the predictor:\n{}",
+        predictor.log_tail()
+    );
+    trainer2.signal(libc::SIGTERM);
+    assert!(
+        trainer2.wait(Duration::from_secs(30)).success(),
+        "{}",
+        trainer2.log_tail()
+    );
     std::thread::sleep(Duration::from_millis(300));
     assert!(
         sim.is_running() && predictor.is_running(),
@@ -128,7 +172,7 @@ fn trainer_weights_reach_the_predictor_and_damaged_ones_are_refused() {
     assert!(t["updates"].as_u64().unwrap() >= 2, "{t}");
     assert!(t["last_loss"].as_f64().unwrap().is_finite(), "{t}");
     let p = read_json(&prs);
-    assert!(p["weights_received"].as_u64().unwrap() >= 2, "{p}");
+    assert!(p["weights_received"].as_u64().unwrap() >= 3, "{p}");
     assert_eq!(p["weights_rejected"], 1, "{p}");
     let version = p["model_version"].as_u64().unwrap();
     assert!(

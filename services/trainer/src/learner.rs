@@ -33,6 +33,11 @@ impl Learner {
     pub fn new(cfg: &TrainerConfig) -> anyhow::Result<Self> {
         let mut trainer = Trainer::f_new(&cfg.model, &cfg.train)
             .context("building the model from [trainer.model]")?;
+        if let Some(dir) = &cfg.checkpoint_dir {
+            // Fail at start, not after the first hour of training.
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("creating trainer.checkpoint_dir {}", dir.display()))?;
+        }
         let checkpoint = cfg
             .checkpoint_dir
             .as_ref()
@@ -123,9 +128,10 @@ impl Learner {
         };
         weights.send(header, &bytes)?;
         if let Some(path) = &self.checkpoint {
-            self.trainer
-                .save_checkpoint(path, self.last_loss)
-                .with_context(|| format!("saving {}", path.display()))?;
+            // A full disk must not end the learning in memory: say so and keep training.
+            if let Err(e) = self.trainer.save_checkpoint(path, self.last_loss) {
+                tracing::error!(path = %path.display(), "could not save the checkpoint: {e}");
+            }
         }
         tracing::info!(version = self.version, step = self.trainer.step(), loss = ?self.last_loss, bytes = bytes.len(), "weights published");
         Ok(())
