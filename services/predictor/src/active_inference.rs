@@ -20,7 +20,9 @@ pub struct ActiveInferenceConfig {
     pub speeds: Vec<f32>,
     /// Turn rates of the candidates (right wheel minus left over two), rad/s.
     pub turns: Vec<f32>,
-    /// Imagined steps per candidate (each 0.02 s): one step barely moves the image.
+    /// Imagined steps per candidate (each 0.02 s). Longer horizons separate the candidates better
+    /// but cost a batched model step each (benches/policy.rs: K=15 x 3 steps ~33 ms, far over the
+    /// 10 ms a realtime step may wait); 1 fits.
     pub horizon: usize,
     /// Weight of the change from the previous command (per (rad/s)^2), against image error.
     pub smoothness: f32,
@@ -38,7 +40,7 @@ impl Default for ActiveInferenceConfig {
             enabled: true,
             speeds: vec![5.0, 8.0, 11.0],
             turns: vec![-6.0, -3.0, 0.0, 3.0, 6.0],
-            horizon: 5,
+            horizon: 1,
             smoothness: 0.002,
             trust_ratio: 0.7,
             trust_after_steps: 50,
@@ -113,23 +115,28 @@ pub fn choose(
     let flat: Vec<f32> = cands.iter().flatten().copied().collect();
     let actions = Tensor::from_slice(&flat).view([k, 2]);
     let model = world.model();
-    let mut state = world.state().expand(k);
+    let horizon = cfg.horizon.max(1);
+    // The first prediction runs from the batch-1 state, where the model shares the
+    // action-independent work across candidates; later ones need one state per candidate.
+    let mut state = world.state().shallow_clone();
     let mut risk = Tensor::zeros([k], (Kind::Float, tch::Device::Cpu));
-    for _ in 0..cfg.horizon.max(1) {
+    for h in 0..horizon {
         // Imagine: predict the next frame under each action, then take it as if observed.
         let predicted = model.f_predict_candidates(&state, &actions)?;
         risk +=
             (&predicted - preferred)
                 .square()
                 .mean_dim([1i64, 2, 3].as_slice(), false, Kind::Float);
-        let (next, _) = model.f_step(&state, &predicted, &actions)?;
-        state = next;
+        if h + 1 < horizon {
+            let current = if h == 0 { state.expand(k) } else { state };
+            state = model.f_step(&current, &predicted, &actions)?.0;
+        }
     }
     let prev = Tensor::from_slice(&previous).view([1, 2]);
     let change = (&actions - prev)
         .square()
         .sum_dim_intlist([1i64].as_slice(), false, Kind::Float);
-    let cost = risk / cfg.horizon.max(1) as f64 + change * f64::from(cfg.smoothness);
+    let cost = risk / horizon as f64 + change * f64::from(cfg.smoothness);
     let best = cost.argmin(0, false).int64_value(&[]) as usize;
     Ok((cands[best], cost.double_value(&[best as i64])))
 }
