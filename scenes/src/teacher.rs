@@ -86,7 +86,13 @@ impl Teacher {
     /// Wheel command [left, right] in rad/s for the current sensors. Uses only what a real car
     /// has (the line sensors), never the ground truth.
     pub fn act(&mut self, s: &Sensors) -> [f32; 2] {
-        let base = self.rule(s.line);
+        self.act_on_line(s.line)
+    }
+
+    /// [`Teacher::act`] from the three line sensors alone (what a remote process sees in an
+    /// observation message).
+    pub fn act_on_line(&mut self, line: [bool; 3]) -> [f32; 2] {
+        let base = self.rule(line);
         let n = self.next_noise();
         [base[0] + n[0], base[1] + n[1]]
     }

@@ -14,7 +14,10 @@ use crate::world_model::WorldModel;
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ActiveInferenceConfig {
-    /// Off: the reactive rule drives even with a good model.
+    /// Off by default: measured, it does not drive yet. With a model at 0.21 x copy-last on
+    /// held-out teacher data, one-step planning took the car off the oval within 3 s (the next
+    /// frame barely depends on the command, and the measured wheel speed lags it); longer
+    /// horizons cost 15-30 ms per step. Turn on to experiment; the reactive rule drives otherwise.
     pub enabled: bool,
     /// Forward speeds of the candidates, rad/s.
     pub speeds: Vec<f32>,
@@ -37,7 +40,7 @@ pub struct ActiveInferenceConfig {
 impl Default for ActiveInferenceConfig {
     fn default() -> Self {
         Self {
-            enabled: true,
+            enabled: false,
             speeds: vec![5.0, 8.0, 11.0],
             turns: vec![-6.0, -3.0, 0.0, 3.0, 6.0],
             horizon: 1,

@@ -50,6 +50,7 @@ pub struct Policy {
     cfg: ActiveInferenceConfig,
     candidates: Vec<[f32; 2]>,
     previous: [f32; 2],
+    episode: Option<u8>,
 }
 
 impl Policy {
@@ -61,11 +62,21 @@ impl Policy {
             candidates: active_inference::candidates(&cfg.active_inference),
             cfg: cfg.active_inference.clone(),
             previous: [0.0; 2],
+            episode: None,
         }
     }
 
     /// Steps the world model with the observation and decides the next command.
     pub fn act(&mut self, obs: &Observation) -> anyhow::Result<([f32; 2], CommandSource)> {
+        if self.episode.is_some_and(|e| e != obs.episode) {
+            // The simulator put the car back: the past no longer predicts the present.
+            if let Some(world) = self.world.as_mut() {
+                world.reset_state();
+            }
+            self.reactive.last_side = 0.0;
+            self.previous = [0.0; 2];
+        }
+        self.episode = Some(obs.episode);
         self.preference.observe(obs);
         let mut decided = None;
         if let Some(world) = self.world.as_mut() {

@@ -97,7 +97,18 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
         watchdog.pet();
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
-            tracing::info!(answered = summary.commands_sent, compute = %compute.summary(), "running");
+            let (model_mse, copy_mse) = policy
+                .world
+                .as_ref()
+                .map_or((None, None), |w| (w.model_mse.get(), w.copy_mse.get()));
+            tracing::info!(
+                answered = summary.commands_sent,
+                active_inference = summary.active_inference_steps,
+                model_mse = ?model_mse,
+                copy_last_mse = ?copy_mse,
+                compute = %compute.summary(),
+                "running"
+            );
         }
     }
     if let Some(e) = failure {

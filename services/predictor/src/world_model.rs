@@ -40,6 +40,8 @@ pub struct WorldModel {
     pub copy_mse: Ema,
     /// Steps observed since the model was (re)built.
     pub steps: u64,
+    /// The next prediction starts from an empty state and is not a fair sample of the model.
+    fresh: bool,
 }
 
 /// An observation's image as `[1, 1, H, W]`.
@@ -61,6 +63,7 @@ impl WorldModel {
             model_mse: Ema::default(),
             copy_mse: Ema::default(),
             steps: 0,
+            fresh: true,
         })
     }
 
@@ -100,9 +103,10 @@ impl WorldModel {
             .mean(tch::Kind::Float)
             .double_value(&[]);
         // t = 0 of a fresh state predicts from nothing: not a fair sample of the model.
-        if self.steps > 0 {
+        if !self.fresh {
             self.model_mse.push(mse);
         }
+        self.fresh = false;
         if let Some(last) = &self.last_frame {
             self.copy_mse.push(
                 (last - &frame)
@@ -114,6 +118,13 @@ impl WorldModel {
         self.last_frame = Some(frame);
         self.steps += 1;
         Ok(mse)
+    }
+
+    /// A new episode (the car was put back): forget the recurrent state and the last frame.
+    pub fn reset_state(&mut self) {
+        self.state = self.model.zero_state(1);
+        self.last_frame = None;
+        self.fresh = true;
     }
 
     /// True once the model has seen `min_steps` frames and predicts them better than
@@ -198,5 +209,36 @@ mod tests {
         };
         let (c, _) = choose(&w, &cands, &preferred, [8.0, 8.0], &sticky).unwrap();
         assert_eq!(c, [8.0, 8.0]);
+    }
+
+    #[test]
+    fn a_reset_forgets_the_past_episode() {
+        let ckpt = small_checkpoint(1);
+        let run = |reset: bool| {
+            let mut w = WorldModel::from_bytes(&ckpt, 1).unwrap();
+            for i in 0..5 {
+                w.observe(&obs(0.1 * i as f32)).unwrap();
+            }
+            let ema = w.model_mse.get();
+            if reset {
+                w.reset_state();
+            }
+            (w.observe(&obs(0.7)).unwrap(), ema, w.model_mse.get())
+        };
+        let first = WorldModel::from_bytes(&ckpt, 1)
+            .unwrap()
+            .observe(&obs(0.7))
+            .unwrap();
+        let (kept, _, _) = run(false);
+        assert_ne!(
+            kept, first,
+            "the past shapes the prediction without a reset"
+        );
+        let (after_reset, ema_before, ema_after) = run(true);
+        assert_eq!(
+            after_reset, first,
+            "same prediction as a model that never ran"
+        );
+        assert_eq!(ema_after, ema_before, "a blind first guess is not scored");
     }
 }

@@ -47,6 +47,12 @@ pub struct SimulatorConfig {
     pub replay: bool,
     /// Seconds of wall clock between progress log lines.
     pub log_every_s: f64,
+    /// Put the car back at the start (a new episode) once it has been farther than
+    /// `lost_lateral_m` from the line for this long; 0 = never. A lost car sees bare floor, and
+    /// a run would otherwise record nothing useful from then on.
+    pub reset_after_lost_s: f64,
+    /// Distance from the line beyond which the car counts as lost.
+    pub lost_lateral_m: f64,
     /// `[simulator.scene]`: track and physics.
     pub scene: SceneConfig,
     /// `[simulator.teacher]`: the teacher driver.
@@ -64,6 +70,8 @@ impl Default for SimulatorConfig {
             max_steps: 0,
             replay: true,
             log_every_s: 5.0,
+            reset_after_lost_s: 3.0,
+            lost_lateral_m: 0.1,
             scene: SceneConfig::default(),
             teacher: TeacherConfig::default(),
         }

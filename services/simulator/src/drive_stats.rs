@@ -11,6 +11,7 @@ pub struct DriveStats {
     max_abs_lateral: f64,
     off_line_steps: u64,
     laps: u32,
+    laps_before: u32,
 }
 
 /// Mean and max of |lateral error| in metres.
@@ -27,9 +28,15 @@ impl DriveStats {
         self.sum_abs_lateral += lat;
         self.max_abs_lateral = self.max_abs_lateral.max(lat);
         self.off_line_steps += u64::from(!truth.on_line);
-        self.laps = truth.laps;
+        self.laps = self.laps_before + truth.laps;
     }
 
+    /// The world was reset: its lap counter restarts, the total keeps counting.
+    pub fn end_episode(&mut self) {
+        self.laps_before = self.laps;
+    }
+
+    /// Completed laps over all episodes.
     pub fn laps(&self) -> u32 {
         self.laps
     }

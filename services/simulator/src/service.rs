@@ -51,6 +51,8 @@ pub struct Summary {
     pub replay_chunks_sent: u64,
     /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
     pub dead_nodes_cleaned: u64,
+    /// Times the car was lost and put back at the start (episodes - 1).
+    pub resets: u64,
     /// Observation published -> its command received, as seen by the simulator.
     pub round_trip: LatencySummary,
     /// Wall time of one whole step (physics, sensors, publishing, waiting).
@@ -95,23 +97,27 @@ pub fn run(
     let start = Instant::now();
     let mut last_log = start;
     let mut step = 0u64;
+    let mut episode = 0u32;
+    let mut lost_steps = 0u64;
+    let lost_limit = (cfg.reset_after_lost_s / period).round() as u64;
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
         let t0 = Instant::now();
         let sensors = world.sense();
         drive.record(&sensors.truth);
-        let obs_stamp = publish_observation(ports, step, world.time_s(), &sensors)?;
+        let obs_stamp = publish_observation(ports, step, episode, world.time_s(), &sensors)?;
         let predictor = ports.commands.publishers() > 0;
-        let answer = if predictor {
-            await_command(
-                ports,
-                step,
-                command_wait,
-                shutdown,
-                &mut summary.stale_commands,
-            )?
-        } else {
-            None
-        };
+        // Without a predictor only look (no wait): one that answered and left still counts.
+        let answer = await_command(
+            ports,
+            step,
+            if predictor {
+                command_wait
+            } else {
+                Duration::ZERO
+            },
+            shutdown,
+            &mut summary.stale_commands,
+        )?;
         let cmd = match answer {
             Some(c) => {
                 consecutive_misses = 0;
@@ -158,7 +164,27 @@ pub fn run(
             );
         }
         if cfg.replay {
-            chunk.push(&ports.replay, step, &sensors)?;
+            chunk.push(&ports.replay, step, episode, &sensors)?;
+        }
+        lost_steps = if sensors.truth.lateral_m.abs() > cfg.lost_lateral_m {
+            lost_steps + 1
+        } else {
+            0
+        };
+        if lost_limit > 0 && lost_steps >= lost_limit {
+            tracing::warn!(
+                step,
+                episode,
+                lateral_m = sensors.truth.lateral_m,
+                "car lost the line: back to the start, new episode"
+            );
+            world.reset();
+            teacher.reset();
+            drive.end_episode();
+            chunk.discard(); // a training sequence never spans a reset
+            episode += 1;
+            lost_steps = 0;
+            summary.resets += 1;
         }
         step += 1;
         if cfg.mode == Mode::Realtime {
@@ -186,7 +212,7 @@ pub fn run(
     summary.step_time = step_time.summary();
     summary.laps = drive.laps();
     summary.lateral_error_m = drive.lateral();
-    summary.sim_seconds = world.time_s();
+    summary.sim_seconds = step as f64 * period; // world time restarts with each episode
     summary.wall_seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }
@@ -223,7 +249,13 @@ fn wait_for_peers(
     }
 }
 
-fn publish_observation(ports: &Ports, step: u64, time_s: f64, s: &Sensors) -> anyhow::Result<u64> {
+fn publish_observation(
+    ports: &Ports,
+    step: u64,
+    episode: u32,
+    time_s: f64,
+    s: &Sensors,
+) -> anyhow::Result<u64> {
     let mut stamp_ns = 0;
     ports
         .observations
@@ -233,6 +265,7 @@ fn publish_observation(ports: &Ports, step: u64, time_s: f64, s: &Sensors) -> an
             o.image = s.image;
             o.wheel_velocity = s.wheel_velocity;
             o.line_sensors = s.line.map(u8::from);
+            o.episode = episode as u8; // wraps: receivers only look for a change
             let t = &s.truth;
             o.truth.x_m = t.x;
             o.truth.y_m = t.y;
@@ -288,7 +321,13 @@ struct ChunkBuilder {
 
 impl ChunkBuilder {
     /// Adds a step; sends the chunk once it holds `REPLAY_STEPS` steps.
-    fn push(&mut self, replay: &Sender<ReplayChunk>, step: u64, s: &Sensors) -> anyhow::Result<()> {
+    fn push(
+        &mut self,
+        replay: &Sender<ReplayChunk>,
+        step: u64,
+        episode: u32,
+        s: &Sensors,
+    ) -> anyhow::Result<()> {
         let sample = match self.sample.as_mut() {
             Some(sample) => sample,
             None => {
@@ -296,6 +335,7 @@ impl ChunkBuilder {
                 let c = fresh.payload_mut();
                 c.seq = self.sent;
                 c.first_step = step;
+                c.episode = episode;
                 self.sample.insert(fresh)
             }
         };
@@ -311,5 +351,10 @@ impl ChunkBuilder {
             self.sent += 1;
         }
         Ok(())
+    }
+
+    /// Drops a partly filled chunk (its loan returns to the pool unsent).
+    fn discard(&mut self) {
+        self.sample = None;
     }
 }

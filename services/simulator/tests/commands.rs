@@ -1,0 +1,69 @@
+//! What the simulator does with the commands it gets, over real iceoryx2: non-finite ones are
+//! rejected and counted, and a car steered off the line is put back as a new episode.
+
+mod common;
+
+use mtanet_scenes::{Teacher, TeacherConfig};
+use mtanet_simulator::config::SimulatorConfig;
+
+#[test]
+fn non_finite_commands_are_rejected_counted_and_survived() {
+    let cfg = SimulatorConfig {
+        max_steps: 200,
+        wait_for_peers_s: 20.0,
+        ..Default::default()
+    };
+    // Every 4th command is poisoned, alternating NaN and +inf.
+    let d = common::drive("nan", cfg, |o| match o.step % 8 {
+        3 => [f32::NAN, 5.0],
+        7 => [5.0, f32::INFINITY],
+        _ => [6.0, 6.0],
+    });
+    assert_eq!(d.summary.steps, 200);
+    assert_eq!(d.summary.commands_received, 200, "{:?}", d.summary);
+    assert_eq!(d.summary.rejected_commands, 50, "{:?}", d.summary);
+    // Driving straight at 6 rad/s for 4 s: it moved forward despite the poison.
+    assert!(
+        d.truth.track_s > 0.5,
+        "car did not keep driving: {:?}",
+        d.truth
+    );
+}
+
+#[test]
+fn a_lost_car_is_put_back_as_a_new_episode() {
+    let cfg = SimulatorConfig {
+        max_steps: 600,
+        wait_for_peers_s: 20.0,
+        reset_after_lost_s: 1.0,
+        replay: true,
+        ..Default::default()
+    };
+    // Episode 0: veer off to the right for good. Later episodes: follow the line like the teacher.
+    let mut follower = Teacher::new(&TeacherConfig::default());
+    let d = common::drive("lost", cfg, |o| {
+        if o.episode == 0 {
+            [12.0, 6.0]
+        } else {
+            follower.act_on_line(o.line_sensors.map(|v| v != 0))
+        }
+    });
+    assert!(d.summary.resets >= 1, "{:?}", d.summary);
+    let first_new = d
+        .episodes
+        .iter()
+        .position(|&e| e == 1)
+        .expect("an observation of episode 1");
+    assert!(d.episodes[..first_new].iter().all(|&e| e == 0));
+    assert!(
+        d.episodes[first_new..].iter().all(|&e| e == 1),
+        "one reset only: following the line keeps the car on it"
+    );
+    // Lost means > 0.1 m off for 1 s: the reset cannot come before that.
+    assert!(first_new > 50, "reset after {first_new} steps");
+    assert!(
+        d.truth.lateral_m.abs() < 0.1,
+        "back near the line after the reset: {:?}",
+        d.truth
+    );
+}

@@ -1,0 +1,88 @@
+//! Drives the simulator service (on its own thread, real iceoryx2) with a scripted predictor.
+
+use std::time::Duration;
+
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::{Command, Observation, names, stamp};
+use mtanet_scenes::{GroundTruth, SceneConfig, Teacher, TeacherConfig, World};
+use mtanet_simulator::config::SimulatorConfig;
+use mtanet_simulator::service::{Ports, Summary, run};
+
+/// What the scripted predictor saw and the simulator reported.
+pub struct Drive {
+    pub summary: Summary,
+    pub truth: GroundTruth,
+    /// Episode of every observation, in order.
+    pub episodes: Vec<u8>,
+}
+
+/// Runs `cfg.max_steps` lockstep steps answering each observation with `command(obs)`.
+pub fn drive(
+    tag: &str,
+    cfg: SimulatorConfig,
+    mut command: impl FnMut(&Observation) -> [f32; 2],
+) -> Drive {
+    let ns = IpcConfig {
+        namespace: format!("{tag}{}", std::process::id()),
+    };
+    let sim_ns = ns.clone();
+    let steps = cfg.max_steps;
+    // The simulator runs on its own thread with its own node (iceoryx2 ports are not Send).
+    let sim = std::thread::spawn(move || {
+        let node = create_node(&sim_ns, "sim-under-test").unwrap();
+        let ports = Ports::open(&node).unwrap();
+        let mut world = World::new(&SceneConfig::default()).unwrap();
+        let mut teacher = Teacher::new(&TeacherConfig::default());
+        let summary = run(
+            &node,
+            &ports,
+            &mut world,
+            &mut teacher,
+            &cfg,
+            &Shutdown::manual(),
+        )
+        .unwrap();
+        (summary, world.truth())
+    });
+    let mut episodes = Vec::new();
+    {
+        let node = create_node(&ns, "scripted-predictor").unwrap();
+        let obs =
+            Receiver::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP).unwrap();
+        let cmd = Sender::<Command>::open(&node, names::COMMAND, TopicShape::STEP).unwrap();
+        while (episodes.len() as u64) < steps && !sim.is_finished() {
+            obs.wait(Duration::from_millis(50)).unwrap();
+            obs.drain_events().unwrap();
+            let mut pending = Vec::new();
+            obs.for_each(|o| pending.push(*o)).unwrap();
+            for o in pending {
+                episodes.push(o.episode);
+                let wheels = command(&o);
+                cmd.send_with(|c| {
+                    c.step = o.step;
+                    c.obs_stamp_ns = o.stamp_ns;
+                    c.wheel_velocity = wheels;
+                    c.stamp_ns = stamp::monotonic_ns();
+                })
+                .unwrap();
+            }
+        }
+    }
+    let (summary, truth) = sim.join().unwrap();
+    // iceoryx2 keeps a node counter per namespace by design; this namespace is used once.
+    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
+        if e.file_name()
+            .to_string_lossy()
+            .starts_with(&format!("iox2_{}_", ns.namespace))
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+    Drive {
+        summary,
+        truth,
+        episodes,
+    }
+}
