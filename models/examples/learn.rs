@@ -6,6 +6,7 @@
 use mtanet_models::synth::{SynthConfig, generate};
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 use serde::Deserialize;
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 #[derive(Deserialize, Default)]
@@ -72,8 +73,16 @@ fn main() {
                         count = 0;
                     }
                     stop |= s.step >= max_updates;
+                    if stop {
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
                 }
-                Err(e) => println!("refused: {e}"),
+                Err(e) => {
+                    println!("refused: {e}");
+                    ControlFlow::Continue(())
+                }
             })
             .expect("epoch");
         if let Some((step, loss)) = report.last() {

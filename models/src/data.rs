@@ -19,7 +19,7 @@ pub enum DataError {
         path: PathBuf,
         source: std::io::Error,
     },
-    /// The file is not a readable zip/npz archive (truncated, corrupt, compressed without support).
+    /// The file is not a readable zip/npz archive (truncated, corrupt, an unsupported compression).
     #[error("{path}: not a readable .npz archive: {source}")]
     Archive { path: PathBuf, source: ReadNpzError },
     /// A required array is absent.
@@ -363,6 +363,27 @@ mod tests {
             ),
             (3, 4, (8, 12), 2)
         );
+    }
+
+    #[test]
+    fn reads_numpy_savez_compressed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("zipped.npz");
+        let d = tiny();
+        let to_nd = |t: &Tensor| {
+            let shape: Vec<usize> = t.size().iter().map(|&s| s as usize).collect();
+            ArrayD::from_shape_vec(
+                IxDyn(&shape),
+                Vec::<f32>::try_from(t.flatten(0, -1)).unwrap(),
+            )
+            .unwrap()
+        };
+        let mut w = NpzWriter::new_compressed(File::create(&path).unwrap());
+        w.add_array("images", &to_nd(&d.images)).unwrap();
+        w.add_array("actions", &to_nd(&d.actions)).unwrap();
+        w.finish().unwrap();
+        let back = Dataset::load_npz(&path).unwrap();
+        assert!(back.images.equal(&d.images) && back.actions.equal(&d.actions));
     }
 
     #[test]

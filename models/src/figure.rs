@@ -1,5 +1,6 @@
 //! The paper's Figs 3-7 as one grayscale PNG strip: a column per chosen frame; rows: original
-//! frame, predicted frame, then the first generative unit's output h of each layer.
+//! frame, predicted frame, then the first generative unit's output h of each layer, with row
+//! and frame labels.
 
 use crate::model::{ModelError, MtaPredNet};
 use serde::{Deserialize, Serialize};
@@ -11,6 +12,9 @@ pub const DEFAULT_FRAMES: [usize; 5] = [1, 10, 50, 100, 130];
 /// Each pixel of the input image becomes SCALE x SCALE; deeper layers are stretched to match.
 const SCALE: usize = 8;
 const GAP: usize = 3;
+/// Labels are font8x8 glyphs drawn at TEXT_SCALE (16 px characters).
+const TEXT_SCALE: usize = 2;
+const GLYPH: usize = 8 * TEXT_SCALE;
 
 /// What the strip shows.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -107,7 +111,15 @@ pub fn figure_strip(
         let span = (hi - lo).max(1e-9);
         rows.push(picked.iter().map(|p| (p - lo) / span).collect());
     }
-    write_strip(path, &rows, (is[1] as usize, is[2] as usize))?;
+    let mut row_labels = vec!["input".to_string(), "predicted".to_string()];
+    row_labels.extend((0..layers).map(|l| format!("L{l} GU0")));
+    let col_labels: Vec<String> = used.iter().map(|f| format!("t={f}")).collect();
+    let strip = Strip {
+        rows: &rows,
+        row_labels: &row_labels,
+        col_labels: &col_labels,
+    };
+    strip.write(path, (is[1] as usize, is[2] as usize))?;
     let mut labels = vec![
         "original X_0(t)".to_string(),
         "predicted Xhat_0(t)".to_string(),
@@ -121,43 +133,81 @@ pub fn figure_strip(
     })
 }
 
-/// Draws `rows` of 2-d tensors in [0, 1] as cells of the image's size x SCALE, separated by
-/// white gaps; smaller maps are stretched (nearest) to the cell.
-fn write_strip(
-    path: &Path,
-    rows: &[Vec<Tensor>],
-    (h, w): (usize, usize),
-) -> Result<(), FigureError> {
-    let (ch, cw) = (h * SCALE, w * SCALE);
-    let cols = rows.first().map_or(0, Vec::len);
-    let width = cols * cw + (cols + 1) * GAP;
-    let height = rows.len() * ch + (rows.len() + 1) * GAP;
-    let mut px = vec![255u8; width * height];
-    for (r, row) in rows.iter().enumerate() {
-        for (c, cell) in row.iter().enumerate() {
-            let cell = cell.unsqueeze(0).unsqueeze(0).to_kind(Kind::Float);
-            let big = cell
-                .upsample_nearest2d([ch as i64, cw as i64], None, None)
-                .flatten(0, -1);
-            let vals = Vec::<f32>::try_from(big).map_err(|e| write_err(path, e))?;
-            let (y0, x0) = (GAP + r * (ch + GAP), GAP + c * (cw + GAP));
-            for y in 0..ch {
-                for x in 0..cw {
-                    px[(y0 + y) * width + x0 + x] =
-                        (vals[y * cw + x].clamp(0.0, 1.0) * 255.0).round() as u8;
+/// Cells in a grid with a label left of each row and above each column.
+struct Strip<'a> {
+    /// 2-d tensors in [0, 1], `rows[r][c]`.
+    rows: &'a [Vec<Tensor>],
+    row_labels: &'a [String],
+    col_labels: &'a [String],
+}
+
+impl Strip<'_> {
+    /// Draws the cells at the image's size x SCALE, separated by white gaps (smaller maps are
+    /// stretched, nearest), labels in black, and writes a grayscale PNG.
+    fn write(&self, path: &Path, (h, w): (usize, usize)) -> Result<(), FigureError> {
+        let (ch, cw) = (h * SCALE, w * SCALE);
+        let cols = self.rows.first().map_or(0, Vec::len);
+        let longest = self.row_labels.iter().map(String::len).max().unwrap_or(0);
+        let (left, top) = (longest * GLYPH + 2 * GAP, GLYPH + 2 * GAP);
+        let width = left + cols * cw + (cols + 1) * GAP;
+        let height = top + self.rows.len() * ch + (self.rows.len() + 1) * GAP;
+        let mut px = vec![255u8; width * height];
+        let cell_origin =
+            |r: usize, c: usize| (top + GAP + r * (ch + GAP), left + GAP + c * (cw + GAP));
+        for (r, row) in self.rows.iter().enumerate() {
+            for (c, cell) in row.iter().enumerate() {
+                let cell = cell.unsqueeze(0).unsqueeze(0).to_kind(Kind::Float);
+                let big = cell
+                    .upsample_nearest2d([ch as i64, cw as i64], None, None)
+                    .flatten(0, -1);
+                let vals = Vec::<f32>::try_from(big).map_err(|e| write_err(path, e))?;
+                let (y0, x0) = cell_origin(r, c);
+                for y in 0..ch {
+                    for x in 0..cw {
+                        px[(y0 + y) * width + x0 + x] =
+                            (vals[y * cw + x].clamp(0.0, 1.0) * 255.0).round() as u8;
+                    }
+                }
+            }
+        }
+        for (r, label) in self.row_labels.iter().enumerate() {
+            let (y0, _) = cell_origin(r, 0);
+            draw_text(&mut px, width, (y0 + (ch - GLYPH) / 2, GAP), label);
+        }
+        for (c, label) in self.col_labels.iter().enumerate() {
+            let (_, x0) = cell_origin(0, c);
+            draw_text(&mut px, width, (GAP, x0), label);
+        }
+        let file = std::fs::File::create(path).map_err(|e| write_err(path, e))?;
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header().map_err(|e| write_err(path, e))?;
+        writer
+            .write_image_data(&px)
+            .map_err(|e| write_err(path, e))?;
+        writer.finish().map_err(|e| write_err(path, e))
+    }
+}
+
+/// Black ASCII text with its top-left corner at `(y, x)`; other characters draw as blanks.
+fn draw_text(px: &mut [u8], width: usize, (y, x): (usize, usize), text: &str) {
+    for (i, ch) in text.chars().enumerate() {
+        let glyph = font8x8::legacy::BASIC_LEGACY
+            .get(ch as usize)
+            .copied()
+            .unwrap_or_default();
+        for (gy, bits) in glyph.iter().enumerate() {
+            for gx in (0..8).filter(|gx| bits & (1 << gx) != 0) {
+                for (sy, sx) in (0..TEXT_SCALE).flat_map(|a| (0..TEXT_SCALE).map(move |b| (a, b))) {
+                    let (py, pxx) = (y + gy * TEXT_SCALE + sy, x + (i * 8 + gx) * TEXT_SCALE + sx);
+                    if let Some(p) = px.get_mut(py * width + pxx).filter(|_| pxx < width) {
+                        *p = 0;
+                    }
                 }
             }
         }
     }
-    let file = std::fs::File::create(path).map_err(|e| write_err(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);
-    enc.set_color(png::ColorType::Grayscale);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut writer = enc.write_header().map_err(|e| write_err(path, e))?;
-    writer
-        .write_image_data(&px)
-        .map_err(|e| write_err(path, e))?;
-    writer.finish().map_err(|e| write_err(path, e))
 }
 
 fn write_err(path: &Path, e: impl ToString) -> FigureError {

@@ -11,6 +11,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
+use std::ops::ControlFlow;
 use tch::{Device, Kind, Tensor, nn, nn::OptimizerConfig};
 
 /// Optimiser and schedule settings (serde, the `[train]` table of a run's TOML).
@@ -256,11 +257,12 @@ impl Trainer {
     /// One pass over `data`: shuffled batches of `batch_size` sequences, each run through in
     /// `bptt`-step windows carrying the state. A refused update abandons the rest of that batch
     /// (its state may be poisoned) and is reported through `on_update` like the others.
+    /// `on_update` returning `Break` ends the epoch right there (for an exact update budget).
     pub fn fit_epoch(
         &mut self,
         data: &Dataset,
         seed: u64,
-        mut on_update: impl FnMut(&Result<UpdateStats, TrainError>),
+        mut on_update: impl FnMut(&Result<UpdateStats, TrainError>) -> ControlFlow<()>,
     ) -> Result<(), TrainError> {
         let n = data.len();
         let mut order: Vec<i64> = (0..n).collect();
@@ -279,7 +281,9 @@ impl Trainer {
                 match self.update_from(&state, &imgs, &acts, t0 as usize) {
                     Ok((stats, next)) => {
                         state = next;
-                        on_update(&Ok(stats));
+                        if on_update(&Ok(stats)).is_break() {
+                            return Ok(());
+                        }
                     }
                     Err(TrainError::NoLossWeight { .. }) => {
                         // Nothing to learn in this window, but the state still has to advance.
@@ -291,7 +295,9 @@ impl Trainer {
                     }
                     Err(e @ (TrainError::Model(_) | TrainError::Config(_))) => return Err(e),
                     Err(e) => {
-                        on_update(&Err(e));
+                        if on_update(&Err(e)).is_break() {
+                            return Ok(());
+                        }
                         break;
                     }
                 }

@@ -101,8 +101,24 @@ fn figure_strip_draws_the_frames_that_exist() {
     let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
     let reader = decoder.read_info().unwrap();
     let (w, h) = (reader.info().width, reader.info().height);
-    // 3 columns of 96 px and 5 rows of 64 px, 3 px gaps.
-    assert_eq!((w, h), (3 * 96 + 4 * 3, 5 * 64 + 6 * 3));
+    // 3 columns of 96 px and 5 rows of 64 px, 3 px gaps; a left margin for "predicted" (9
+    // characters of 16 px) and a top one for the frame numbers.
+    let (left, top) = (9 * 16 + 2 * 3, 16 + 2 * 3);
+    assert_eq!((w, h), (left + 3 * 96 + 4 * 3, top + 5 * 64 + 6 * 3));
+    let mut px = vec![0u8; reader.output_buffer_size().unwrap()];
+    let mut reader = reader;
+    reader.next_frame(&mut px).unwrap();
+    let black_in = |x0: u32, x1: u32, y0: u32, y1: u32| {
+        (y0..y1).any(|y| (x0..x1).any(|x| px[(y * w + x) as usize] == 0))
+    };
+    assert!(
+        black_in(0, left, top, h),
+        "row labels drawn in the left margin"
+    );
+    assert!(
+        black_in(left, w, 0, top),
+        "frame labels drawn in the top margin"
+    );
     let err =
         figure_strip(&m, &data.images.get(0), &data.actions.get(0), &[200], &path).unwrap_err();
     assert!(

@@ -7,6 +7,7 @@ use mtanet_models::data::Dataset;
 use mtanet_models::synth::{SynthConfig, generate};
 use mtanet_models::train::{TrainError, weighted_loss};
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};
+use std::ops::ControlFlow;
 use tch::Tensor;
 
 fn tiny() -> ModelConfig {
@@ -169,11 +170,28 @@ fn fit_epoch_walks_truncated_bptt_windows() {
     t.fit_epoch(&data, 0, |r| {
         r.as_ref().expect("finite");
         updates += 1;
+        ControlFlow::Continue(())
     })
     .unwrap();
     // 2 batches x 6 one-step windows, minus the t = 0 window of each batch (no loss weight).
     assert_eq!(updates, 10);
     assert_eq!(t.step(), 10);
+    // Break ends the epoch at once: an exact update budget.
+    let mut seen = 0;
+    t.fit_epoch(&data, 1, |_| {
+        seen += 1;
+        if seen == 3 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    })
+    .unwrap();
+    assert_eq!(
+        t.step(),
+        13,
+        "stopped at the third update of the second epoch"
+    );
 }
 
 fn run_until(t: &mut Trainer, data: &Dataset, updates: u64) {
@@ -183,6 +201,7 @@ fn run_until(t: &mut Trainer, data: &Dataset, updates: u64) {
             if let Err(e) = r {
                 panic!("update refused: {e}");
             }
+            ControlFlow::Continue(())
         })
         .unwrap();
         epoch += 1;

@@ -13,6 +13,7 @@ use mtanet_models::figure::DEFAULT_FRAMES;
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -155,8 +156,16 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
                         running = (0.0, 0);
                     }
                     stop |= args.max_updates.is_some_and(|m| s.step >= m);
+                    if stop {
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
                 }
-                Err(e) => bar.suspend(|| tracing::warn!("{e}")),
+                Err(e) => {
+                    bar.suspend(|| tracing::warn!("{e}"));
+                    ControlFlow::Continue(())
+                }
             },
         )?;
         if let Some(e) = io_error.take() {
