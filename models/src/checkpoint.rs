@@ -129,8 +129,19 @@ fn checksum<'a>(items: impl Iterator<Item = (&'a str, Dtype, &'a [usize], &'a [u
 
 /// The checkpoint as bytes (identical to the file [`save`] writes).
 pub fn to_bytes(vs: &VarStore, cfg: &ModelConfig, meta: &Meta) -> Result<Vec<u8>, CheckpointError> {
+    encode(FORMAT, vs.variables(), cfg, meta)
+}
+
+/// Named tensors with the header of `format` (weights: [`FORMAT`]; Adam moments: the
+/// optimiser's format), as safetensors bytes.
+pub(crate) fn encode(
+    format: &str,
+    tensors: impl IntoIterator<Item = (String, Tensor)>,
+    cfg: &ModelConfig,
+    meta: &Meta,
+) -> Result<Vec<u8>, CheckpointError> {
     let mut raw: BTreeMap<String, (Dtype, Vec<usize>, Vec<u8>)> = BTreeMap::new();
-    for (name, t) in vs.variables() {
+    for (name, t) in tensors {
         let dtype = dtype_of(&name, t.kind())?;
         let t = t.to_device(Device::Cpu).contiguous();
         let numel = t.numel();
@@ -150,7 +161,7 @@ pub fn to_bytes(vs: &VarStore, cfg: &ModelConfig, meta: &Meta) -> Result<Vec<u8>
     // One metadata entry holding a JSON object: safetensors keeps `__metadata__` in a HashMap,
     // whose order would differ between calls; one key makes the bytes deterministic.
     let header = serde_json::json!({
-        "format": FORMAT,
+        "format": format,
         "schema_version": SCHEMA_VERSION,
         "config": cfg,
         "meta": meta,
@@ -172,8 +183,11 @@ pub fn save(
     cfg: &ModelConfig,
     meta: &Meta,
 ) -> Result<(), CheckpointError> {
-    let path = path.as_ref();
-    let bytes = to_bytes(vs, cfg, meta)?;
+    write_atomic(path.as_ref(), &to_bytes(vs, cfg, meta)?)
+}
+
+/// Writes `bytes` to a temporary file in `path`'s directory, fsyncs and renames it over `path`.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
     let io = |source| CheckpointError::Io {
         path: path.to_owned(),
         source,
@@ -192,7 +206,7 @@ pub fn save(
     ));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(&bytes)?;
+        f.write_all(bytes)?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)?;
         // Persist the rename itself.
@@ -206,6 +220,11 @@ pub fn save(
 
 /// Decodes and verifies (format, schema, checksum) a checkpoint held in memory.
 pub fn from_bytes(bytes: &[u8]) -> Result<Checkpoint, CheckpointError> {
+    decode(FORMAT, bytes)
+}
+
+/// [`from_bytes`] for a file of `format`.
+pub(crate) fn decode(format: &str, bytes: &[u8]) -> Result<Checkpoint, CheckpointError> {
     let st = SafeTensors::deserialize(bytes)?;
     let (_, header) = SafeTensors::read_metadata(bytes)?;
     let not_ours = |why: String| CheckpointError::NotCheckpoint(why);
@@ -220,7 +239,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Checkpoint, CheckpointError> {
         })?;
     let info: serde_json::Value =
         serde_json::from_str(text).map_err(|e| not_ours(format!("metadata JSON: {e}")))?;
-    if info["format"] != FORMAT {
+    if info["format"] != format {
         return Err(not_ours(format!("format {}", info["format"])));
     }
     let found = info["schema_version"]
@@ -312,8 +331,24 @@ impl Checkpoint {
             return Err(CheckpointError::Config(diff));
         }
         let vars = vs.variables();
+        let problems = self.tensor_differences(&vars);
+        if !problems.is_empty() {
+            return Err(CheckpointError::Tensors(problems));
+        }
+        tch::no_grad(|| {
+            for (name, var) in &vars {
+                let mut var = var.shallow_clone();
+                var.f_copy_(&self.tensors[name])
+                    .map_err(|e| CheckpointError::Tensors(vec![format!("`{name}`: {e}")]))?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Missing, unexpected, misshapen or mistyped tensors against `vars`, sorted; empty if none.
+    pub(crate) fn tensor_differences(&self, vars: &HashMap<String, Tensor>) -> Vec<String> {
         let mut problems = Vec::new();
-        for (name, var) in &vars {
+        for (name, var) in vars {
             match self.tensors.get(name) {
                 None => problems.push(format!("missing `{name}`")),
                 Some(t) if t.size() != var.size() => problems.push(format!(
@@ -335,18 +370,8 @@ impl Checkpoint {
                 .filter(|n| !vars.contains_key(*n))
                 .map(|n| format!("unexpected `{n}`")),
         );
-        if !problems.is_empty() {
-            problems.sort();
-            return Err(CheckpointError::Tensors(problems));
-        }
-        tch::no_grad(|| {
-            for (name, var) in &vars {
-                let mut var = var.shallow_clone();
-                var.f_copy_(&self.tensors[name])
-                    .map_err(|e| CheckpointError::Tensors(vec![format!("`{name}`: {e}")]))?;
-            }
-            Ok(())
-        })
+        problems.sort();
+        problems
     }
 
     /// A fresh CPU VarStore and model built from the stored configuration, with these weights.

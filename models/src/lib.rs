@@ -13,6 +13,7 @@
 //! two threads collapse 5-50x when another process holds a core (FACTS.md), and at 8x12 the ops
 //! are too small to gain from splitting.
 
+pub mod adam;
 pub mod analysis;
 pub mod checkpoint;
 pub mod config;

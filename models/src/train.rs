@@ -1,6 +1,7 @@
 //! Training: Adam, truncated BPTT, PredNet's weighted error loss, gradient clipping and a guard
 //! that refuses non-finite updates.
 
+use crate::adam::Adam;
 use crate::checkpoint::{self, CheckpointError, Meta};
 use crate::config::{ConfigError, ModelConfig};
 use crate::data::Dataset;
@@ -12,7 +13,7 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
-use tch::{Device, Kind, Tensor, nn, nn::OptimizerConfig};
+use tch::{Device, Kind, Tensor, nn};
 
 /// Optimiser and schedule settings (serde, the `[train]` table of a run's TOML).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -82,7 +83,8 @@ pub struct UpdateStats {
 pub struct Trainer {
     pub vs: nn::VarStore,
     pub model: MtaPredNet,
-    pub opt: nn::Optimizer,
+    /// Adam, with moments that go into the checkpoint's optimiser file.
+    pub opt: Adam,
     pub cfg: ModelConfig,
     pub train_cfg: TrainConfig,
     step: u64,
@@ -97,12 +99,14 @@ impl Trainer {
 
     /// Seeds libtorch with `train_cfg.seed`, builds the model on the CPU and Adam over it.
     pub fn f_new(cfg: &ModelConfig, train_cfg: &TrainConfig) -> Result<Self, TrainError> {
+        // libtorch has one global generator: two trainers seeded and initialised at the same
+        // time on two threads would draw from each other's sequence.
+        static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _one_at_a_time = INIT.lock().unwrap_or_else(|p| p.into_inner());
         tch::manual_seed(train_cfg.seed as i64);
         let vs = nn::VarStore::new(Device::Cpu);
         let model = MtaPredNet::f_new(&vs.root(), cfg)?;
-        let opt = nn::adam(0.9, 0.999, 0.0)
-            .build(&vs, train_cfg.lr)
-            .map_err(|e| ModelError::State(format!("optimiser: {e}")))?;
+        let opt = Adam::new(&vs, train_cfg.lr);
         Ok(Self {
             vs,
             model,
@@ -168,11 +172,11 @@ impl Trainer {
                 loss: loss_value,
             });
         }
-        self.opt.zero_grad();
+        self.opt.zero_grad(&self.vs);
         loss.backward();
         let grad_norm = self.grad_norm();
         if !grad_norm.is_finite() {
-            self.opt.zero_grad();
+            self.opt.zero_grad(&self.vs);
             self.refused += 1;
             tracing::warn!(
                 step = self.step,
@@ -196,8 +200,8 @@ impl Trainer {
                 }
             });
         }
-        self.opt.step();
         self.step += 1;
+        self.opt.step(&self.vs, self.step);
         let stats = UpdateStats {
             step: self.step,
             loss: loss_value,
@@ -217,20 +221,50 @@ impl Trainer {
         checkpoint::to_bytes(&self.vs, &self.cfg, &Meta::new(self.step, loss))
     }
 
-    /// Saves the checkpoint atomically to `path`.
+    /// Saves the checkpoint atomically to `path`, then Adam's moments next to it
+    /// ([`optimizer_path`]), so that [`Trainer::resume`] continues where this left off.
     pub fn save_checkpoint(
         &self,
         path: &std::path::Path,
         loss: Option<f64>,
     ) -> Result<(), CheckpointError> {
-        checkpoint::save(path, &self.vs, &self.cfg, &Meta::new(self.step, loss))
+        let meta = Meta::new(self.step, loss);
+        checkpoint::save(path, &self.vs, &self.cfg, &meta)?;
+        let moments = self.opt.to_bytes(&self.cfg, &meta)?;
+        checkpoint::write_atomic(&optimizer_path(path), &moments)
     }
 
     /// Loads weights and the step counter from a checkpoint made with the same configuration
-    /// (the optimiser's moments are not stored: Adam restarts its statistics).
+    /// (an error leaves the trainer as it was), and Adam's moments from the file beside it when
+    /// it belongs to that same step. Without them (absent, older, damaged) Adam restarts its
+    /// statistics, which costs a few noisy updates but no learned weight: a warning, not an error.
     pub fn resume(&mut self, path: &std::path::Path) -> Result<Meta, CheckpointError> {
         let meta = checkpoint::load_into(path, &mut self.vs, &self.cfg)?;
         self.step = meta.step;
+        let opt_path = optimizer_path(path);
+        let restored = std::fs::read(&opt_path)
+            .map_err(|source| CheckpointError::Io {
+                path: opt_path.clone(),
+                source,
+            })
+            .and_then(|bytes| {
+                let mut opt = Adam::new(&self.vs, self.train_cfg.lr);
+                let at = opt.load_bytes(&bytes, &self.cfg)?;
+                if at.step != meta.step {
+                    return Err(CheckpointError::NotCheckpoint(format!(
+                        "moments of step {}, weights of step {}",
+                        at.step, meta.step
+                    )));
+                }
+                Ok(opt)
+            });
+        match restored {
+            Ok(opt) => self.opt = opt,
+            Err(e) => {
+                self.opt = Adam::new(&self.vs, self.train_cfg.lr);
+                tracing::warn!(path = %opt_path.display(), "Adam restarts its statistics: {e}");
+            }
+        }
         Ok(meta)
     }
 
@@ -322,4 +356,13 @@ pub fn weighted_loss(cfg: &ModelConfig, layer_errors: &Tensor, t0: usize) -> Opt
     let lw = Tensor::from_slice(&lw).view([1, 1, -1]);
     let b = layer_errors.size()[0] as f64;
     Some((layer_errors * tw * lw).sum(Kind::Float) / (f64::from(total) * b))
+}
+
+/// Where [`Trainer::save_checkpoint`] keeps Adam's moments for `checkpoint`:
+/// `latest.safetensors` -> `latest.optimizer.safetensors`.
+pub fn optimizer_path(checkpoint: &std::path::Path) -> std::path::PathBuf {
+    let stem = checkpoint
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    checkpoint.with_file_name(format!("{stem}.optimizer.safetensors"))
 }

@@ -320,3 +320,60 @@ fn default_model_learns_teacher_recordings() {
     );
     assert!(m.mse_shuffled_actions.unwrap() > 1.5 * m.mse);
 }
+
+/// Saving and resuming keeps Adam's moments: the resumed trainer's next update is the very one
+/// the original makes; without the optimiser file it is not (and resuming still works).
+#[test]
+fn resume_continues_adams_statistics() {
+    let data = generate(&SynthConfig {
+        sequences: 4,
+        steps: 8,
+        ..Default::default()
+    })
+    .unwrap();
+    let cfg = TrainConfig {
+        batch_size: 4,
+        ..Default::default()
+    };
+    let mut original = trainer(&tiny(), cfg.clone());
+    for _ in 0..3 {
+        original.update(&data.images, &data.actions).unwrap();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("latest.safetensors");
+    original.save_checkpoint(&path, None).unwrap();
+    let opt_file = mtanet_models::train::optimizer_path(&path);
+    assert!(opt_file.ends_with("latest.optimizer.safetensors"));
+    assert!(opt_file.exists());
+    let next = |t: &mut Trainer| {
+        t.update(&data.images, &data.actions).unwrap();
+        snapshot(t)
+    };
+    let mut resumed = trainer(
+        &tiny(),
+        TrainConfig {
+            seed: 9,
+            ..cfg.clone()
+        },
+    );
+    assert_eq!(resumed.resume(&path).unwrap().step, 3);
+    let expected = next(&mut original);
+    let got = next(&mut resumed);
+    assert!(
+        expected
+            .iter()
+            .zip(&got)
+            .all(|(a, b)| a.0 == b.0 && a.1.equal(&b.1)),
+        "resumed update differs from the original's"
+    );
+    // Damaged moments: the weights still resume, Adam starts afresh, so the update differs.
+    let bytes = std::fs::read(&opt_file).unwrap();
+    std::fs::write(&opt_file, &bytes[..bytes.len() / 2]).unwrap();
+    let mut fresh = trainer(&tiny(), TrainConfig { seed: 9, ..cfg });
+    assert_eq!(fresh.resume(&path).unwrap().step, 3);
+    let restarted = next(&mut fresh);
+    assert!(
+        restarted.iter().zip(&got).any(|(a, b)| !a.1.equal(&b.1)),
+        "without its moments Adam must take a different step"
+    );
+}
