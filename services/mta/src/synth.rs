@@ -29,6 +29,9 @@ pub fn run(args: SynthArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let data = generate(&cfg).context("generating the synthetic data set")?;
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     data.save_npz(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
     tracing::info!(path = %args.out.display(), shape = ?data.images.size(), seed = args.seed, "synthetic data set written");
