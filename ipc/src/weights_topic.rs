@@ -1,11 +1,13 @@
 //! The weights topic: whole checkpoints as a `[u8]` slice behind a [`WeightsHeader`]. History 1
-//! gives a predictor that starts (or restarts) late the newest weights at once; the allocator
+//! gives a predictor that starts (or restarts) late the newest weights at once (once the trainer
+//! calls [`WeightsSender::serve_new_subscribers`]); the allocator
 //! grows the slice in powers of two when a larger model is published.
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 
 use crate::ports::{PortError, open_event, service_name};
@@ -49,7 +51,8 @@ fn err(op: &'static str, e: impl core::fmt::Debug) -> PortError {
 pub struct WeightsSender {
     publisher: Publisher<ipc::Service, [u8], WeightsHeader>,
     notifier: Notifier<ipc::Service>,
-    _service: Factory,
+    service: Factory,
+    subscribers_seen: std::cell::Cell<usize>,
 }
 
 impl WeightsSender {
@@ -69,8 +72,24 @@ impl WeightsSender {
         Ok(Self {
             publisher,
             notifier,
-            _service: service,
+            service,
+            subscribers_seen: std::cell::Cell::new(0),
         })
+    }
+
+    /// Hands the newest checkpoint (history 1) to subscribers that connected since the last call
+    /// and wakes them. iceoryx2 delivers history when the publisher updates its connections,
+    /// which otherwise happens only at the next send: a predictor (re)started after a publish
+    /// would wait minutes for the next one. Cheap; call it from the sender's loop.
+    pub fn serve_new_subscribers(&self) -> Result<(), PortError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| err("update connections", e))?;
+        let now = self.service.dynamic_config().number_of_subscribers();
+        if now != self.subscribers_seen.replace(now) {
+            self.notifier.notify().map_err(|e| err("notify", e))?;
+        }
+        Ok(())
     }
 
     /// Publishes one checkpoint (`bytes`) with its header; `header.len` and `stamp_ns` are set here.

@@ -91,6 +91,7 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
             learner.train_once(&buffer, &ports.weights)?;
             update_time.record_ns(t0.elapsed().as_nanos() as u64);
         }
+        ports.weights.serve_new_subscribers()?;
         watchdog.pet();
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();

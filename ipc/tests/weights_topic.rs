@@ -1,0 +1,52 @@
+//! The weights topic over real iceoryx2: a predictor that subscribes after the trainer published
+//! still gets the newest checkpoint, and is woken for it.
+
+use std::time::Duration;
+
+use mtanet_ipc::WeightsHeader;
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::weights_topic::{WeightsReceiver, WeightsSender};
+
+#[test]
+fn a_late_subscriber_gets_the_newest_weights() {
+    let ipc = IpcConfig {
+        namespace: format!("wt{}", std::process::id()),
+    };
+    {
+        let trainer = create_node(&ipc, "trainer").unwrap();
+        let sender = WeightsSender::open(&trainer).unwrap();
+        for version in 1..=2u64 {
+            let header = WeightsHeader {
+                version,
+                ..Default::default()
+            };
+            sender.send(header, &vec![version as u8; 1000]).unwrap();
+        }
+        // The predictor starts now, after both publishes.
+        let predictor = create_node(&ipc, "predictor").unwrap();
+        let receiver = WeightsReceiver::open(&predictor).unwrap();
+        sender.serve_new_subscribers().unwrap();
+        let mut woken = false;
+        receiver
+            .listener()
+            .timed_wait(|_| woken = true, Duration::from_secs(2))
+            .unwrap();
+        assert!(woken, "the late subscriber was not woken");
+        let got = receiver
+            .latest(|h, bytes| (h.version, bytes.len(), bytes[0]))
+            .unwrap();
+        assert_eq!(got, Some((2, 1000, 2)), "newest checkpoint, whole");
+        // Nothing new: nothing pending, and no wake-up without a new subscriber.
+        sender.serve_new_subscribers().unwrap();
+        assert_eq!(receiver.latest(|h, _| h.version).unwrap(), None);
+    }
+    // iceoryx2 keeps a node counter per namespace by design; this namespace is used once.
+    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
+        if e.file_name()
+            .to_string_lossy()
+            .starts_with(&format!("iox2_{}_", ipc.namespace))
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
