@@ -140,6 +140,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             &pr_s["observation_age"],
         ),
         ("policy compute (predictor)", &pr_s["compute"]),
+        ("world model after cmd (pred.)", &pr_s["world_update"]),
     ] {
         let l = lat(v);
         println!(

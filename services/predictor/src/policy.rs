@@ -51,6 +51,8 @@ pub struct Policy {
     candidates: Vec<[f32; 2]>,
     previous: [f32; 2],
     episode: Option<u8>,
+    /// The latest observation, while the world model has not seen it (`act` did not need it).
+    unobserved: Option<Observation>,
 }
 
 impl Policy {
@@ -63,11 +65,15 @@ impl Policy {
             cfg: cfg.active_inference.clone(),
             previous: [0.0; 2],
             episode: None,
+            unobserved: None,
         }
     }
 
-    /// Steps the world model with the observation and decides the next command.
+    /// Decides the next command. Only active inference needs the world model stepped with this
+    /// frame first; otherwise the command goes out at once and [`Policy::after_command`] steps
+    /// the model, so bookkeeping never delays the car.
     pub fn act(&mut self, obs: &Observation) -> anyhow::Result<([f32; 2], CommandSource)> {
+        self.after_command()?; // catch up if the caller skipped it for the previous frame
         if self.episode.is_some_and(|e| e != obs.episode) {
             // The simulator put the car back: the past no longer predicts the present.
             if let Some(world) = self.world.as_mut() {
@@ -79,26 +85,40 @@ impl Policy {
         self.episode = Some(obs.episode);
         self.preference.observe(obs);
         let mut decided = None;
-        if let Some(world) = self.world.as_mut() {
+        if self.cfg.enabled
+            && let Some(world) = self.world.as_mut()
+            && world.trusted(self.cfg.trust_ratio, self.cfg.trust_after_steps)
+            && let Some(preferred) = self.preference.image(self.cfg.preference_frames)
+        {
             world.observe(obs)?;
-            let preferred = self.preference.image(self.cfg.preference_frames);
-            if let Some(preferred) = preferred.filter(|_| {
-                self.cfg.enabled && world.trusted(self.cfg.trust_ratio, self.cfg.trust_after_steps)
-            }) {
-                let (cmd, _cost) = active_inference::choose(
-                    world,
-                    &self.candidates,
-                    &preferred,
-                    self.previous,
-                    &self.cfg,
-                )?;
-                decided = Some((cmd, CommandSource::ActiveInference));
-            }
+            let (cmd, _cost) = active_inference::choose(
+                world,
+                &self.candidates,
+                &preferred,
+                self.previous,
+                &self.cfg,
+            )?;
+            decided = Some((cmd, CommandSource::ActiveInference));
         }
         let (cmd, source) =
             decided.unwrap_or_else(|| (self.reactive.act(obs), CommandSource::Reactive));
         self.previous = cmd;
+        if source == CommandSource::Reactive && self.world.is_some() {
+            self.unobserved = Some(*obs);
+        }
         Ok((cmd, source))
+    }
+
+    /// Work the command did not wait for: steps the world model with the frame `act` decided
+    /// on without it. Returns whether there was such a frame.
+    pub fn after_command(&mut self) -> anyhow::Result<bool> {
+        match (self.world.as_mut(), self.unobserved.take()) {
+            (Some(world), Some(obs)) => {
+                world.observe(&obs)?;
+                Ok(true)
+            }
+            _ => Ok(false),
+        }
     }
 }
 
@@ -131,5 +151,59 @@ mod tests {
         let mut p = Policy::new(&PredictorConfig::default());
         let (_, source) = p.act(&obs([0, 1, 0])).unwrap();
         assert_eq!(source, CommandSource::Reactive);
+    }
+
+    #[test]
+    fn the_command_waits_for_the_world_model_only_when_planning_needs_it() {
+        use crate::active_inference::ActiveInferenceConfig;
+        use crate::world_model::tests::small_checkpoint;
+        let steps = |p: &Policy| p.world.as_ref().unwrap().steps;
+        let mut p = Policy::new(&PredictorConfig::default());
+        p.world = Some(WorldModel::from_bytes(&small_checkpoint(1), 1).unwrap());
+        let (_, source) = p.act(&obs([0, 1, 0])).unwrap();
+        assert_eq!(source, CommandSource::Reactive);
+        assert_eq!(
+            steps(&p),
+            0,
+            "the reactive command goes out before the model step"
+        );
+        assert!(p.after_command().unwrap());
+        assert_eq!(steps(&p), 1);
+        assert!(!p.after_command().unwrap(), "each frame is observed once");
+        // A caller that skips after_command loses no frame: the next act catches up first.
+        p.act(&obs([0, 1, 0])).unwrap();
+        p.act(&obs([0, 1, 0])).unwrap();
+        assert_eq!(steps(&p), 2);
+
+        // Planning with a trusted model steps the model before deciding, and leaves nothing over.
+        let cfg = PredictorConfig {
+            active_inference: ActiveInferenceConfig {
+                enabled: true,
+                trust_ratio: 1e9,
+                trust_after_steps: 0,
+                preference_frames: 1,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let mut p = Policy::new(&cfg);
+        p.world = Some(WorldModel::from_bytes(&small_checkpoint(1), 1).unwrap());
+        let lit = |v: f32| Observation {
+            image: [v; mtanet_ipc::IMAGE_PIXELS],
+            ..obs([0, 1, 0])
+        };
+        for v in [0.2, 0.6] {
+            let (_, source) = p.act(&lit(v)).unwrap();
+            assert_eq!(
+                source,
+                CommandSource::Reactive,
+                "no statistics yet: not trusted"
+            );
+            p.after_command().unwrap();
+        }
+        let (_, source) = p.act(&lit(0.4)).unwrap();
+        assert_eq!(source, CommandSource::ActiveInference);
+        assert_eq!(steps(&p), 3, "planning needed this frame first");
+        assert!(!p.after_command().unwrap());
     }
 }

@@ -52,8 +52,18 @@ pub struct Summary {
     pub copy_last_mse: Option<f64>,
     /// Observation published -> command decided (transport in + own compute).
     pub observation_age: LatencySummary,
-    /// Own compute per step (policy only).
+    /// Own compute per step until the command is sent (policy only).
     pub compute: LatencySummary,
+    /// World-model step done after the command was sent, when the policy did not need it.
+    pub world_update: LatencySummary,
+}
+
+/// Per-step latencies the loop records.
+#[derive(Default)]
+struct StepStats {
+    age: LatencyStats,
+    compute: LatencyStats,
+    world_update: LatencyStats,
 }
 
 pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
@@ -62,7 +72,7 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
     let weights_guard = waitset.attach_notification(ports.weights.listener())?;
     let mut policy = Policy::new(cfg);
     let mut summary = Summary::default();
-    let (mut age, mut compute) = (LatencyStats::new(), LatencyStats::new());
+    let mut stats = StepStats::default();
     let mut expected_step: Option<u64> = None;
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
@@ -76,8 +86,7 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
                     &mut policy,
                     &mut summary,
                     &mut expected_step,
-                    &mut age,
-                    &mut compute,
+                    &mut stats,
                 )
             } else if id.has_event_from(&weights_guard) {
                 receive_weights(ports, &mut policy, &mut summary)
@@ -106,7 +115,8 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
                 active_inference = summary.active_inference_steps,
                 model_mse = ?model_mse,
                 copy_last_mse = ?copy_mse,
-                compute = %compute.summary(),
+                compute = %stats.compute.summary(),
+                world_update = %stats.world_update.summary(),
                 "running"
             );
         }
@@ -118,8 +128,9 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
         summary.model_mse = w.model_mse.get();
         summary.copy_last_mse = w.copy_mse.get();
     }
-    summary.observation_age = age.summary();
-    summary.compute = compute.summary();
+    summary.observation_age = stats.age.summary();
+    summary.compute = stats.compute.summary();
+    summary.world_update = stats.world_update.summary();
     Ok(summary)
 }
 
@@ -128,8 +139,7 @@ fn answer_observations(
     policy: &mut Policy,
     summary: &mut Summary,
     expected_step: &mut Option<u64>,
-    age: &mut LatencyStats,
-    compute: &mut LatencyStats,
+    stats: &mut StepStats,
 ) -> anyhow::Result<()> {
     ports.observations.drain_events()?;
     let mut pending = Vec::new();
@@ -157,8 +167,12 @@ fn answer_observations(
             c.stamp_ns = stamp::monotonic_ns();
         })?;
         summary.commands_sent += 1;
-        compute.record_ns(compute_ns);
-        age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
+        stats.compute.record_ns(compute_ns);
+        stats.age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
+        let t1 = Instant::now();
+        if policy.after_command()? {
+            stats.world_update.record_ns(t1.elapsed().as_nanos() as u64);
+        }
     }
     Ok(())
 }

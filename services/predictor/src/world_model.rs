@@ -138,11 +138,12 @@ impl WorldModel {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 
-    fn small_checkpoint(seed: u64) -> Vec<u8> {
+    /// A tiny untrained network's checkpoint (also used by the policy's tests).
+    pub(crate) fn small_checkpoint(seed: u64) -> Vec<u8> {
         let cfg = ModelConfig {
             channels: vec![4, 4, 4],
             a_channels: vec![1, 4, 4],
