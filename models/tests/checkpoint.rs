@@ -186,15 +186,40 @@ fn truncated_or_damaged_files_are_clear_errors() {
     assert!(err.to_string().contains("absent.safetensors"), "{err}");
 }
 
-/// Child half of `another_process_loads_the_file`: prints the probe's sum.
+/// Every variable's exact bits, in name order, hashed: equal only if the weights are identical.
+fn weights_digest(vs: &VarStore) -> u64 {
+    use std::hash::{DefaultHasher, Hash, Hasher};
+    let mut vars: Vec<(String, Tensor)> = vs.variables().into_iter().collect();
+    vars.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut h = DefaultHasher::new();
+    for (name, t) in vars {
+        name.hash(&mut h);
+        let values = Vec::<f32>::try_from(t.flatten(0, -1)).unwrap();
+        values.iter().for_each(|v| v.to_bits().hash(&mut h));
+    }
+    h.finish()
+}
+
+/// The probe's sum, to the bit: both processes run libtorch with one thread, so the same
+/// weights give the same reduction order and the same float (two threads would not).
+fn probe_bits(m: &MtaPredNet) -> u64 {
+    probe(m).sum(Kind::Double).double_value(&[]).to_bits()
+}
+
+/// Child half of `another_process_loads_the_file`: prints the weights' digest and the probe.
 #[test]
 fn child_probe() {
     let Ok(path) = std::env::var("MTANET_CHECKPOINT_CHILD") else {
         return;
     };
+    tch::set_num_threads(1);
     let ck = checkpoint::load(&path).expect("child load");
-    let (_vs, m) = ck.build().expect("child build");
-    println!("PROBE={:.9}", probe(&m).sum(Kind::Double).double_value(&[]));
+    let (vs, m) = ck.build().expect("child build");
+    println!(
+        "WEIGHTS={:016x} PROBE={:016x}",
+        weights_digest(&vs),
+        probe_bits(&m)
+    );
 }
 
 #[test]
@@ -217,9 +242,18 @@ fn another_process_loads_the_file() {
     );
     let line = stdout
         .lines()
-        .find_map(|l| l.split("PROBE=").nth(1))
-        .map(str::trim)
+        .find_map(|l| {
+            l.split_once("WEIGHTS=")
+                .map(|(_, rest)| format!("WEIGHTS={}", rest.trim()))
+        })
         .unwrap_or_else(|| panic!("child printed no probe:\n{stdout}"));
-    let want = format!("{:.9}", probe(&m).sum(Kind::Double).double_value(&[]));
-    assert_eq!(line, want);
+    let want = format!(
+        "WEIGHTS={:016x} PROBE={:016x}",
+        weights_digest(&vs),
+        probe_bits(&m)
+    );
+    assert_eq!(
+        line, want,
+        "the other process loaded different weights or predicts differently"
+    );
 }
