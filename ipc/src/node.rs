@@ -161,3 +161,15 @@ fn pattern_name(
         _ => "other",
     }
 }
+
+/// Removes the namespace's node counter segment, the one file iceoryx2 keeps by design.
+pub fn remove_namespace_files(ns: &str) {
+    let prefix = format!("iox2_{ns}_");
+    if let Ok(rd) = std::fs::read_dir("/dev/shm") {
+        for e in rd.flatten() {
+            if e.file_name().to_string_lossy().starts_with(&prefix) {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+}

@@ -185,3 +185,67 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
     );
     remove_namespace_files(&ns);
 }
+
+/// SIGTERM keeps what the trainer learned since its last publish: with publishing far away, the
+/// checkpoint on disk exists only because the stop saved it, at the last update's step.
+#[test]
+fn a_stopped_trainer_saves_the_updates_it_had_not_published() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("sv");
+    let cfg = dir.path().join("stack.toml");
+    let ck_dir = dir.path().join("ck");
+    let config = FAST_TRAINER
+        .replace(
+            "publish_every_updates = 2",
+            "publish_every_updates = 1000000",
+        )
+        .replace(
+            "[trainer]\n",
+            &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
+        );
+    std::fs::write(&cfg, config).unwrap();
+    let trs = dir.path().join("trainer.json");
+    let common = ["--namespace", &ns, "--config", arg(&cfg)];
+    let mut trainer = Proc::spawn(
+        "mta-trainer",
+        &[&common[..], &["--summary", arg(&trs)]].concat(),
+        dir.path(),
+    );
+    let mut predictor = Proc::spawn("mta-predictor", &common, dir.path());
+    wait_for_alive(&ns, 2, Duration::from_secs(30));
+    let mut sim = Proc::spawn(
+        "mta-simulator",
+        &[&common[..], &["--max-steps", "200", "--expect-trainer"]].concat(),
+        dir.path(),
+    );
+    assert!(
+        sim.wait(Duration::from_secs(120)).success(),
+        "{}",
+        sim.log_tail()
+    );
+    // 10 chunks are in; the tiny model makes an update in milliseconds.
+    std::thread::sleep(Duration::from_secs(2));
+    let latest = ck_dir.join("latest.safetensors");
+    assert!(!latest.exists(), "nothing should be saved before the stop");
+    for p in [&predictor, &trainer] {
+        p.signal(libc::SIGTERM);
+    }
+    for p in [&mut predictor, &mut trainer] {
+        assert!(
+            p.wait(Duration::from_secs(30)).success(),
+            "{}",
+            p.log_tail()
+        );
+    }
+    let t = read_json(&trs);
+    assert_eq!(t["chunks_received"], 10, "{t}");
+    let updates = t["updates"].as_u64().unwrap();
+    assert!(updates >= 1, "the trainer never trained: {t}");
+    let saved = mtanet_models::checkpoint::load(&latest)
+        .unwrap_or_else(|e| panic!("no checkpoint saved at stop: {e}"));
+    assert_eq!(
+        saved.meta.step, updates,
+        "the saved step is the last update"
+    );
+    remove_namespace_files(&ns);
+}

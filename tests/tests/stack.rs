@@ -87,8 +87,8 @@ fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
         "simulator failed: {status}\n{}",
         sim.log_tail()
     );
-    // The trainer may still be draining the last chunks; give it a moment before stopping.
-    std::thread::sleep(Duration::from_millis(300));
+    // Stopped at once: the trainer must take in the chunks still queued (after the simulator,
+    // their publisher, has gone).
     predictor.signal(SIGTERM);
     trainer.signal(SIGTERM);
     exit_ok(&mut predictor);

@@ -90,7 +90,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     };
     bar.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
-    std::thread::sleep(Duration::from_millis(300)); // let the trainer drain the last chunks
+    // No grace period: the trainer takes in what is still queued when it stops.
     for p in [&predictor, &trainer] {
         p.signal(libc::SIGTERM);
     }

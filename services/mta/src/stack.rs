@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+pub use mtanet_ipc::node::remove_namespace_files;
 use mtanet_ipc::node::{IpcConfig, NodeCensus, census};
 
 /// `target/<profile>/`, where cargo puts the binaries (tests run from `target/<profile>/deps/`).
@@ -168,18 +169,6 @@ pub fn leftover_shm(ns: &str) -> Vec<String> {
                 .collect()
         })
         .unwrap_or_default()
-}
-
-/// Removes the namespace's node counter segment, the one file iceoryx2 keeps by design.
-pub fn remove_namespace_files(ns: &str) {
-    let prefix = format!("iox2_{ns}_");
-    if let Ok(rd) = std::fs::read_dir("/dev/shm") {
-        for e in rd.flatten() {
-            if e.file_name().to_string_lossy().starts_with(&prefix) {
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
 }
 
 /// Reads a JSON summary written by a service.

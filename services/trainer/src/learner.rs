@@ -25,6 +25,8 @@ pub struct Learner {
     checkpoint: Option<PathBuf>,
     version: u64,
     last_loss: Option<f64>,
+    /// Training step of the checkpoint on disk, so a stop saves only what is new.
+    saved_step: u64,
     pub refused: u64,
 }
 
@@ -42,6 +44,7 @@ impl Learner {
             .checkpoint_dir
             .as_ref()
             .map(|d| d.join("latest.safetensors"));
+        let mut saved_step = 0;
         if let Some(path) = checkpoint.as_ref().filter(|p| p.exists()) {
             // A checkpoint that does not match is an error, not a silent fresh start: the operator
             // changed the model config or the file is damaged, and must decide.
@@ -49,6 +52,7 @@ impl Learner {
                 .resume(path)
                 .with_context(|| format!("resuming from {}", path.display()))?;
             tracing::info!(path = %path.display(), step = meta.step, "resumed training");
+            saved_step = meta.step;
         }
         Ok(Self {
             trainer,
@@ -58,6 +62,7 @@ impl Learner {
             checkpoint,
             version: 0,
             last_loss: None,
+            saved_step,
             refused: 0,
         })
     }
@@ -129,12 +134,33 @@ impl Learner {
         weights.send(header, &bytes)?;
         if let Some(path) = &self.checkpoint {
             // A full disk must not end the learning in memory: say so and keep training.
-            if let Err(e) = self.trainer.save_checkpoint(path, self.last_loss) {
-                tracing::error!(path = %path.display(), "could not save the checkpoint: {e}");
+            match self.trainer.save_checkpoint(path, self.last_loss) {
+                Ok(()) => self.saved_step = self.trainer.step(),
+                Err(e) => {
+                    tracing::error!(path = %path.display(), "could not save the checkpoint: {e}")
+                }
             }
         }
         tracing::info!(version = self.version, step = self.trainer.step(), loss = ?self.last_loss, bytes = bytes.len(), "weights published");
         Ok(())
+    }
+
+    /// On a clean stop, keeps the updates made since the last publish (up to
+    /// `publish_every_updates` of them) on disk. Returns the saved step, if it saved.
+    pub fn save_on_stop(&mut self) -> anyhow::Result<Option<u64>> {
+        let Some(path) = &self.checkpoint else {
+            return Ok(None);
+        };
+        let step = self.trainer.step();
+        if step == self.saved_step {
+            return Ok(None);
+        }
+        self.trainer
+            .save_checkpoint(path, self.last_loss)
+            .with_context(|| format!("saving the checkpoint {} at stop", path.display()))?;
+        self.saved_step = step;
+        tracing::info!(path = %path.display(), step, "checkpoint saved at stop");
+        Ok(Some(step))
     }
 
     /// True when resuming loaded weights worth sending before the first new update.

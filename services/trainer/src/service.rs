@@ -109,6 +109,13 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
     if let Some(e) = failure {
         return Err(e.into());
     }
+    // A clean stop loses nothing already delivered: count the chunks still queued (they were
+    // waiting while an update ran) and keep the updates made since the last publish on disk.
+    ports.replay.for_each(|c| {
+        steps += u64::from(c.len);
+        buffer.push(c);
+    })?;
+    learner.save_on_stop()?;
     Ok(Summary {
         chunks_received: buffer.received(),
         chunks_lost: buffer.lost(),
@@ -120,4 +127,39 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
         weights_published: learner.published(),
         update_time: update_time.summary(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mtanet_ipc::node::{IpcConfig, create_node, remove_namespace_files};
+    use mtanet_ipc::ports::Sender;
+
+    /// A stop that comes while chunks wait in the queue (the trainer was busy with an update)
+    /// still takes them in: what shared memory delivered is counted, not dropped.
+    #[test]
+    fn a_stop_takes_in_the_chunks_still_queued() {
+        let ipc = IpcConfig {
+            namespace: format!("trq{}", std::process::id()),
+        };
+        let node = create_node(&ipc, "trainer-test").unwrap();
+        let ports = Ports::open(&node).unwrap();
+        let sender: Sender<ReplayChunk> =
+            Sender::open(&node, names::REPLAY, TopicShape::REPLAY).unwrap();
+        for seq in 0..10 {
+            sender
+                .send_with(|c| {
+                    c.seq = seq;
+                    c.len = 20;
+                })
+                .unwrap();
+        }
+        let shutdown = Shutdown::manual();
+        shutdown.request();
+        let s = run(&ports, &TrainerConfig::default(), &shutdown).unwrap();
+        assert_eq!((s.chunks_received, s.chunks_lost), (10, 0), "{s:?}");
+        assert_eq!(s.steps_received, 200);
+        drop((sender, ports, node));
+        remove_namespace_files(&ipc.namespace);
+    }
 }
