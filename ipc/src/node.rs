@@ -54,7 +54,7 @@ impl IpcConfig {
             return Err(NodeError::BadNamespace(ns.clone()));
         }
         let mut config = Config::default();
-        config.global.prefix = FileName::new(format!("iox2_{ns}_").as_bytes())
+        config.global.prefix = FileName::new(file_prefix(ns).as_bytes())
             .map_err(|_| NodeError::BadNamespace(ns.clone()))?;
         Ok(config)
     }
@@ -162,14 +162,35 @@ fn pattern_name(
     }
 }
 
+/// What the name of every iceoryx2 file of the namespace starts with.
+fn file_prefix(ns: &str) -> String {
+    format!("iox2_{ns}_")
+}
+
+/// The namespace's files in /dev/shm, by name.
+fn shm_files(ns: &str) -> Vec<String> {
+    let prefix = file_prefix(ns);
+    std::fs::read_dir("/dev/shm")
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with(&prefix))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Shared-memory files the namespace left in /dev/shm, except the per-namespace node counter
+/// that iceoryx2 keeps on purpose (`..._node.<version>.global_mgmt`).
+pub fn leftover_shm(ns: &str) -> Vec<String> {
+    let mut files = shm_files(ns);
+    files.retain(|n| !n.ends_with(".global_mgmt"));
+    files
+}
+
 /// Removes the namespace's node counter segment, the one file iceoryx2 keeps by design.
 pub fn remove_namespace_files(ns: &str) {
-    let prefix = format!("iox2_{ns}_");
-    if let Ok(rd) = std::fs::read_dir("/dev/shm") {
-        for e in rd.flatten() {
-            if e.file_name().to_string_lossy().starts_with(&prefix) {
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
+    for name in shm_files(ns) {
+        let _ = std::fs::remove_file(std::path::Path::new("/dev/shm").join(name));
     }
 }

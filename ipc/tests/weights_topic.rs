@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use mtanet_ipc::WeightsHeader;
-use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::node::{IpcConfig, create_node, remove_namespace_files};
 use mtanet_ipc::weights_topic::{WeightsReceiver, WeightsSender};
 
 #[test]
@@ -41,12 +41,5 @@ fn a_late_subscriber_gets_the_newest_weights() {
         assert_eq!(receiver.latest(|h, _| h.version).unwrap(), None);
     }
     // iceoryx2 keeps a node counter per namespace by design; this namespace is used once.
-    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
-        if e.file_name()
-            .to_string_lossy()
-            .starts_with(&format!("iox2_{}_", ipc.namespace))
-        {
-            let _ = std::fs::remove_file(e.path());
-        }
-    }
+    remove_namespace_files(&ipc.namespace);
 }

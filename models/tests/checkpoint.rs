@@ -200,13 +200,15 @@ fn weights_digest(vs: &VarStore) -> u64 {
     h.finish()
 }
 
-/// The probe's sum, to the bit: both processes run libtorch with one thread, so the same
-/// weights give the same reduction order and the same float (two threads would not).
-fn probe_bits(m: &MtaPredNet) -> u64 {
-    probe(m).sum(Kind::Double).double_value(&[]).to_bits()
+/// The weights' digest and the probe's sum to the bit: both processes run libtorch with one
+/// thread, so the same weights give the same reduction order and the same float (two threads
+/// would not).
+fn fingerprint(vs: &VarStore, m: &MtaPredNet) -> String {
+    let probe_sum = probe(m).sum(Kind::Double).double_value(&[]);
+    format!("{:016x} {:016x}", weights_digest(vs), probe_sum.to_bits())
 }
 
-/// Child half of `another_process_loads_the_file`: prints the weights' digest and the probe.
+/// Child half of `another_process_loads_the_file`: prints the fingerprint.
 #[test]
 fn child_probe() {
     let Ok(path) = std::env::var("MTANET_CHECKPOINT_CHILD") else {
@@ -215,11 +217,7 @@ fn child_probe() {
     tch::set_num_threads(1);
     let ck = checkpoint::load(&path).expect("child load");
     let (vs, m) = ck.build().expect("child build");
-    println!(
-        "WEIGHTS={:016x} PROBE={:016x}",
-        weights_digest(&vs),
-        probe_bits(&m)
-    );
+    println!("PROBE={}", fingerprint(&vs, &m));
 }
 
 #[test]
@@ -242,18 +240,12 @@ fn another_process_loads_the_file() {
     );
     let line = stdout
         .lines()
-        .find_map(|l| {
-            l.split_once("WEIGHTS=")
-                .map(|(_, rest)| format!("WEIGHTS={}", rest.trim()))
-        })
+        .find_map(|l| l.split("PROBE=").nth(1))
+        .map(str::trim)
         .unwrap_or_else(|| panic!("child printed no probe:\n{stdout}"));
-    let want = format!(
-        "WEIGHTS={:016x} PROBE={:016x}",
-        weights_digest(&vs),
-        probe_bits(&m)
-    );
     assert_eq!(
-        line, want,
+        line,
+        fingerprint(&vs, &m),
         "the other process loaded different weights or predicts differently"
     );
 }

@@ -1,7 +1,7 @@
 //! The learning loop across processes: the trainer learns from replay chunks in shared memory and
 //! hands weights to the predictor, which loads them; damaged weights are refused without harm.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use mtanet_ipc::WeightsHeader;
@@ -23,35 +23,33 @@ action_scale = [5.0, 5.0]
 batch_size = 4
 "#;
 
-fn wait_for_log(p: &Proc, needle: &str, timeout: Duration) -> bool {
-    let deadline = Instant::now() + timeout;
-    while Instant::now() < deadline {
-        if std::fs::read_to_string(&p.log)
-            .unwrap_or_default()
-            .contains(needle)
-        {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    false
-}
-
 fn arg(p: &Path) -> &str {
     p.to_str().unwrap()
+}
+
+/// Writes `FAST_TRAINER` publishing every `publish_every` updates and keeping checkpoints in
+/// `dir/ck`; returns the config file and the checkpoint folder.
+fn checkpointing_config(dir: &Path, publish_every: u64) -> (PathBuf, PathBuf) {
+    let cfg = dir.join("stack.toml");
+    let ck_dir = dir.join("ck");
+    let config = FAST_TRAINER
+        .replace(
+            "publish_every_updates = 2",
+            &format!("publish_every_updates = {publish_every}"),
+        )
+        .replace(
+            "[trainer]\n",
+            &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
+        );
+    std::fs::write(&cfg, config).unwrap();
+    (cfg, ck_dir)
 }
 
 #[test]
 fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("ln");
-    let cfg = dir.path().join("stack.toml");
-    let ck_dir = dir.path().join("ck");
-    let config = FAST_TRAINER.replace(
-        "[trainer]\n",
-        &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
-    );
-    std::fs::write(&cfg, config).unwrap();
+    let (cfg, ck_dir) = checkpointing_config(dir.path(), 2);
     let (trs, prs) = (
         dir.path().join("trainer.json"),
         dir.path().join("predictor.json"),
@@ -75,7 +73,7 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
     );
 
     assert!(
-        wait_for_log(&predictor, "weights loaded", Duration::from_secs(120)),
+        predictor.wait_for_log("weights loaded", Duration::from_secs(120)),
         "no weights reached the predictor.\ntrainer:\n{}\npredictor:\n{}",
         trainer.log_tail(),
         predictor.log_tail()
@@ -104,7 +102,7 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
             .send(header, b"definitely not a safetensors checkpoint")
             .unwrap();
         assert!(
-            wait_for_log(&predictor, "rejected weights", Duration::from_secs(20)),
+            predictor.wait_for_log("rejected weights", Duration::from_secs(20)),
             "{}",
             predictor.log_tail()
         );
@@ -124,12 +122,12 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
     std::fs::create_dir_all(&t2_dir).unwrap();
     let mut trainer2 = Proc::spawn("mta-trainer", &common, &t2_dir);
     assert!(
-        wait_for_log(&trainer2, "resumed training", Duration::from_secs(60)),
+        trainer2.wait_for_log("resumed training", Duration::from_secs(60)),
         "{}",
         trainer2.log_tail()
     );
     assert!(
-        wait_for_log(&trainer2, "weights published", Duration::from_secs(60)),
+        trainer2.wait_for_log("weights published", Duration::from_secs(60)),
         "{}",
         trainer2.log_tail()
     );
@@ -192,18 +190,7 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
 fn a_stopped_trainer_saves_the_updates_it_had_not_published() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("sv");
-    let cfg = dir.path().join("stack.toml");
-    let ck_dir = dir.path().join("ck");
-    let config = FAST_TRAINER
-        .replace(
-            "publish_every_updates = 2",
-            "publish_every_updates = 1000000",
-        )
-        .replace(
-            "[trainer]\n",
-            &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
-        );
-    std::fs::write(&cfg, config).unwrap();
+    let (cfg, ck_dir) = checkpointing_config(dir.path(), 1_000_000);
     let trs = dir.path().join("trainer.json");
     let common = ["--namespace", &ns, "--config", arg(&cfg)];
     let mut trainer = Proc::spawn(

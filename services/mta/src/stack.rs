@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-pub use mtanet_ipc::node::remove_namespace_files;
 use mtanet_ipc::node::{IpcConfig, NodeCensus, census};
+pub use mtanet_ipc::node::{leftover_shm, remove_namespace_files};
 
 /// `target/<profile>/`, where cargo puts the binaries (tests run from `target/<profile>/deps/`).
 pub fn bin_dir() -> PathBuf {
@@ -128,6 +128,21 @@ impl Proc {
         let lines: Vec<&str> = text.lines().collect();
         lines[lines.len().saturating_sub(30)..].join("\n")
     }
+
+    /// Waits until the log contains `needle`; false after `timeout`.
+    pub fn wait_for_log(&self, needle: &str, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            if std::fs::read_to_string(&self.log)
+                .unwrap_or_default()
+                .contains(needle)
+            {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        false
+    }
 }
 
 impl Drop for Proc {
@@ -155,20 +170,6 @@ pub fn wait_for_alive(ns: &str, n: usize, timeout: Duration) -> NodeCensus {
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-}
-
-/// Shared-memory files the namespace left in /dev/shm, except the per-namespace node counter
-/// that iceoryx2 keeps on purpose (`..._node.<version>.global_mgmt`).
-pub fn leftover_shm(ns: &str) -> Vec<String> {
-    let prefix = format!("iox2_{ns}_");
-    std::fs::read_dir("/dev/shm")
-        .map(|rd| {
-            rd.filter_map(|e| e.ok())
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| n.starts_with(&prefix) && !n.ends_with(".global_mgmt"))
-                .collect()
-        })
-        .unwrap_or_default()
 }
 
 /// Reads a JSON summary written by a service.

@@ -72,14 +72,7 @@ pub fn drive(
     }
     let (summary, truth) = sim.join().unwrap();
     // iceoryx2 keeps a node counter per namespace by design; this namespace is used once.
-    for e in std::fs::read_dir("/dev/shm").unwrap().flatten() {
-        if e.file_name()
-            .to_string_lossy()
-            .starts_with(&format!("iox2_{}_", ns.namespace))
-        {
-            let _ = std::fs::remove_file(e.path());
-        }
-    }
+    mtanet_ipc::node::remove_namespace_files(&ns.namespace);
     Drive {
         summary,
         truth,
