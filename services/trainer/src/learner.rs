@@ -7,7 +7,7 @@ use anyhow::Context;
 use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_PIXELS, IMAGE_WIDTH, WeightsHeader};
 use mtanet_models::Trainer;
-use mtanet_models::checkpoint::SCHEMA_VERSION;
+use mtanet_models::checkpoint::{CheckpointError, SCHEMA_VERSION};
 use mtanet_models::train::UpdateStats;
 use rand::SeedableRng;
 use rand::seq::IndexedRandom;
@@ -132,35 +132,32 @@ impl Learner {
             ..Default::default()
         };
         weights.send(header, &bytes)?;
-        if let Some(path) = &self.checkpoint {
-            // A full disk must not end the learning in memory: say so and keep training.
-            match self.trainer.save_checkpoint(path, self.last_loss) {
-                Ok(()) => self.saved_step = self.trainer.step(),
-                Err(e) => {
-                    tracing::error!(path = %path.display(), "could not save the checkpoint: {e}")
-                }
-            }
+        // A full disk must not end the learning in memory: say so and keep training.
+        if let Err(e) = self.save() {
+            tracing::error!(path = ?self.checkpoint, "could not save the checkpoint: {e}");
         }
         tracing::info!(version = self.version, step = self.trainer.step(), loss = ?self.last_loss, bytes = bytes.len(), "weights published");
         Ok(())
     }
 
     /// On a clean stop, keeps the updates made since the last publish (up to
-    /// `publish_every_updates` of them) on disk. Returns the saved step, if it saved.
-    pub fn save_on_stop(&mut self) -> anyhow::Result<Option<u64>> {
-        let Some(path) = &self.checkpoint else {
-            return Ok(None);
-        };
-        let step = self.trainer.step();
-        if step == self.saved_step {
-            return Ok(None);
+    /// `publish_every_updates` of them) on disk.
+    pub fn save_on_stop(&mut self) -> anyhow::Result<()> {
+        if self.checkpoint.is_none() || self.trainer.step() == self.saved_step {
+            return Ok(());
         }
-        self.trainer
-            .save_checkpoint(path, self.last_loss)
-            .with_context(|| format!("saving the checkpoint {} at stop", path.display()))?;
-        self.saved_step = step;
-        tracing::info!(path = %path.display(), step, "checkpoint saved at stop");
-        Ok(Some(step))
+        self.save().context("saving the checkpoint at stop")?;
+        tracing::info!(path = ?self.checkpoint, step = self.saved_step, "checkpoint saved at stop");
+        Ok(())
+    }
+
+    /// Writes the checkpoint (and Adam's moments) when `checkpoint_dir` is set.
+    fn save(&mut self) -> Result<(), CheckpointError> {
+        if let Some(path) = &self.checkpoint {
+            self.trainer.save_checkpoint(path, self.last_loss)?;
+            self.saved_step = self.trainer.step();
+        }
+        Ok(())
     }
 
     /// True when resuming loaded weights worth sending before the first new update.

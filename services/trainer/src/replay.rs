@@ -17,6 +17,8 @@ pub struct ReplayBuffer {
     capacity: usize,
     sequences: VecDeque<Sequence>,
     received: u64,
+    /// Steps in all chunks received (a chunk's `len`).
+    steps_received: u64,
     lost: u64,
     next_seq: Option<u64>,
 }
@@ -27,6 +29,7 @@ impl ReplayBuffer {
             capacity: capacity.max(1),
             sequences: VecDeque::new(),
             received: 0,
+            steps_received: 0,
             lost: 0,
             next_seq: None,
         }
@@ -41,6 +44,7 @@ impl ReplayBuffer {
         }
         self.next_seq = Some(c.seq + 1);
         self.received += 1;
+        self.steps_received += u64::from(c.len);
         let len = (c.len as usize).min(c.images.len());
         if self.sequences.len() == self.capacity {
             self.sequences.pop_front();
@@ -62,6 +66,10 @@ impl ReplayBuffer {
 
     pub fn received(&self) -> u64 {
         self.received
+    }
+
+    pub fn steps_received(&self) -> u64 {
+        self.steps_received
     }
 
     pub fn lost(&self) -> u64 {
@@ -93,6 +101,7 @@ mod tests {
             b.push(&chunk(s));
         }
         assert_eq!(b.received(), 3);
+        assert_eq!(b.steps_received(), 9);
         assert_eq!(b.lost(), 2);
         assert_eq!(b.len(), 2);
         let kept: Vec<u64> = b.sequences().map(|s| s.first_step).collect();

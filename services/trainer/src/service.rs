@@ -57,7 +57,6 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
     if learner.has_trained_weights() {
         learner.publish(&ports.weights)?;
     }
-    let mut steps = 0u64;
     let mut update_time = LatencyStats::new();
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
@@ -72,12 +71,10 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
         };
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
             if id.has_event_from(&replay_guard) {
-                let res = ports.replay.drain_events().and_then(|_| {
-                    ports.replay.for_each(|c| {
-                        steps += u64::from(c.len);
-                        buffer.push(c);
-                    })
-                });
+                let res = ports
+                    .replay
+                    .drain_events()
+                    .and_then(|_| ports.replay.for_each(|c| buffer.push(c)));
                 if let Err(e) = res {
                     failure = Some(e);
                     return CallbackProgression::Stop;
@@ -111,15 +108,12 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
     }
     // A clean stop loses nothing already delivered: count the chunks still queued (they were
     // waiting while an update ran) and keep the updates made since the last publish on disk.
-    ports.replay.for_each(|c| {
-        steps += u64::from(c.len);
-        buffer.push(c);
-    })?;
+    ports.replay.for_each(|c| buffer.push(c))?;
     learner.save_on_stop()?;
     Ok(Summary {
         chunks_received: buffer.received(),
         chunks_lost: buffer.lost(),
-        steps_received: steps,
+        steps_received: buffer.steps_received(),
         buffered_sequences: buffer.len(),
         updates: learner.updates(),
         updates_refused: learner.refused,
