@@ -224,3 +224,47 @@ fn realtime_stack_stops_cleanly_on_sigterm() {
     assert!(s["commands_received"].as_u64().unwrap() > 0, "{s}");
     assert_namespace_clean(&ns);
 }
+
+/// iceoryx2 drops the samples of a publisher that left before the subscriber connected to it
+/// (eclipse-iceoryx/iceoryx2#39). A trainer frozen for the whole run (as if starved of CPU) and
+/// released while the simulator lingers at exit still gets every chunk.
+#[test]
+fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("lg");
+    let trs = dir.path().join("trainer.json");
+    let mut trainer = Proc::spawn(
+        "mta-trainer",
+        &["--namespace", &ns, "--summary", arg(&trs)],
+        dir.path(),
+    );
+    let mut predictor = Proc::spawn("mta-predictor", &["--namespace", &ns], dir.path());
+    wait_for_alive(&ns, 2, Duration::from_secs(30));
+    // Frozen inside its loop, subscribed but not yet connected to any simulator.
+    assert!(
+        trainer.wait_for_log("waiting for replay chunks", Duration::from_secs(60)),
+        "{}",
+        trainer.log_tail()
+    );
+    trainer.signal(libc::SIGSTOP);
+    let mut sim = Proc::spawn(
+        "mta-simulator",
+        &["--namespace", &ns, "--max-steps", "200", "--expect-trainer"],
+        dir.path(),
+    );
+    assert!(
+        sim.wait_for_log("lingering", Duration::from_secs(60)),
+        "the simulator did not linger for its subscriber:\n{}",
+        sim.log_tail()
+    );
+    trainer.signal(libc::SIGCONT);
+    exit_ok(&mut sim);
+    for p in [&predictor, &trainer] {
+        p.signal(SIGTERM);
+    }
+    exit_ok(&mut trainer);
+    exit_ok(&mut predictor);
+    let t = read_json(&trs);
+    assert_eq!(t["chunks_received"], 10, "{t}");
+    assert_namespace_clean(&ns);
+}

@@ -45,6 +45,10 @@ pub struct SimulatorConfig {
     pub max_steps: u64,
     /// Publish replay chunks for the trainer.
     pub replay: bool,
+    /// At the end of a run, keep the replay publisher this long while a trainer subscribes:
+    /// iceoryx2 drops the samples of a publisher that left before the subscriber connected to
+    /// it (eclipse-iceoryx/iceoryx2#39), so a trainer starved of CPU would lose the run's chunks.
+    pub replay_linger_s: f64,
     /// Seconds of wall clock between progress log lines.
     pub log_every_s: f64,
     /// Put the car back at the start (a new episode) once it has been farther than
@@ -69,6 +73,7 @@ impl Default for SimulatorConfig {
             expect_trainer: false,
             max_steps: 0,
             replay: true,
+            replay_linger_s: 1.0,
             log_every_s: 5.0,
             reset_after_lost_s: 3.0,
             lost_lateral_m: 0.1,

@@ -214,6 +214,9 @@ pub fn run(
     summary.lateral_error_m = drive.lateral();
     summary.sim_seconds = step as f64 * period; // world time restarts with each episode
     summary.wall_seconds = start.elapsed().as_secs_f64();
+    if cfg.replay {
+        linger_for_replay(ports, cfg, &mut watchdog);
+    }
     Ok(summary)
 }
 
@@ -246,6 +249,23 @@ fn wait_for_peers(
             "peers missing after {:.1} s: starting anyway (the teacher drives without a predictor)",
             cfg.wait_for_peers_s
         );
+    }
+}
+
+/// Keeps the replay publisher (this process) alive for `replay_linger_s` while a trainer
+/// subscribes, so one that has not connected yet still can and takes the chunks.
+fn linger_for_replay(ports: &Ports, cfg: &SimulatorConfig, watchdog: &mut Watchdog) {
+    if ports.replay.subscribers() == 0 || cfg.replay_linger_s <= 0.0 {
+        return;
+    }
+    tracing::info!(
+        seconds = cfg.replay_linger_s,
+        "lingering so the trainer can take the last replay chunks"
+    );
+    let deadline = Instant::now() + Duration::from_secs_f64(cfg.replay_linger_s);
+    while Instant::now() < deadline {
+        watchdog.pet();
+        std::thread::sleep(Duration::from_millis(10));
     }
 }
 

@@ -57,6 +57,10 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
     if learner.has_trained_weights() {
         learner.publish(&ports.weights)?;
     }
+    tracing::info!(
+        min_sequences = cfg.min_sequences,
+        "model ready; waiting for replay chunks"
+    );
     let mut update_time = LatencyStats::new();
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
