@@ -5,7 +5,7 @@
 use core::fmt::Debug;
 
 use bytemuck::Zeroable;
-use iceoryx2::port::listener::Listener;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -233,12 +233,13 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Receiver<T> {
             .map_err(|e| io_err("listen", self.name, e))
     }
 
-    /// Blocks up to `timeout` for a wake-up (used where one input paces the loop).
+    /// Blocks up to `timeout` for a wake-up (used where one input paces the loop). A signal
+    /// that interrupts the wait is a wake-up too: the caller's loop checks its shutdown flag.
     pub fn wait(&self, timeout: core::time::Duration) -> Result<(), PortError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
-            .map_err(|e| io_err("listen", self.name, e))
+        match self.listener.timed_wait(|_| {}, timeout) {
+            Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
+            Err(e) => Err(io_err("listen", self.name, e)),
+        }
     }
 
     /// Calls `f` with each pending message in order, reading them in place in shared memory.
