@@ -89,7 +89,6 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         }
     };
     bar.finish_and_clear();
-    let wall = start.elapsed().as_secs_f64();
     // No grace period: the trainer takes in what is still queued when it stops.
     for p in [&predictor, &trainer] {
         p.signal(libc::SIGTERM);
@@ -123,6 +122,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     let lat =
         |v: &Value| -> LatencySummary { serde_json::from_value(v.clone()).unwrap_or_default() };
     let steps = sim_s["steps"].as_u64().unwrap_or(0);
+    // The simulator's own clock, from its wait for peers to its last step: without its process
+    // start-up and the replay linger at exit.
+    let wall = sim_s["wall_seconds"].as_f64().unwrap_or(f64::NAN);
     println!(
         "lockstep soak: {steps} steps in {wall:.2} s wall = {:.0} steps/s, real-time factor {:.1}x",
         steps as f64 / wall,
