@@ -11,5 +11,8 @@ pub const REPLAY: &str = "mtanet/replay";
 /// trainer -> predictor: a checkpoint as a `[u8]` slice behind a [`crate::WeightsHeader`].
 pub const WEIGHTS: &str = "mtanet/weights";
 
+/// trainer -> simulator: [`crate::TrainerStatus`] after every update (lockstep pacing).
+pub const TRAINER_STATUS: &str = "mtanet/trainer_status";
+
 /// Every topic, for status listings and clean-up checks.
-pub const ALL: [&str; 4] = [OBSERVATION, COMMAND, REPLAY, WEIGHTS];
+pub const ALL: [&str; 5] = [OBSERVATION, COMMAND, REPLAY, WEIGHTS, TRAINER_STATUS];

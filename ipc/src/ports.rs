@@ -35,6 +35,13 @@ impl TopicShape {
         max_subscribers: 4,
         max_publishers: 2,
     };
+    /// A status topic: the newest message is what counts, and a late subscriber gets it.
+    pub const STATUS: Self = Self {
+        buffer: 4,
+        history: 1,
+        max_subscribers: 4,
+        max_publishers: 2,
+    };
     /// A deeper queue for replay chunks, so a trainer busy with an update loses none: 256
     /// chunks are 102 s of realtime driving, or ~1 s of a lockstep soak at ~5000 steps/s (one
     /// update takes ~0.4 s). About 2 MB of shared memory per subscriber.

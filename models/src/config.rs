@@ -35,6 +35,10 @@ pub struct ModelConfig {
     pub image_width: i64,
     /// Length of the action vector a(t) (2: the two wheel velocities).
     pub action_dim: i64,
+    /// Control steps per model step: the model sees every `frame_skip`-th frame, and its action
+    /// is the mean wheel command over the steps in between (1: every frame, as in the paper).
+    /// Part of the checkpoint, so whoever runs the model steps it at the cadence it learnt.
+    pub frame_skip: i64,
     /// R channels per layer (the generative units' ConvLSTM width). Its length is the number of layers.
     pub channels: Vec<i64>,
     /// Channels of X_l / Xhat_l per layer; the first is the image's (1, grayscale).
@@ -72,6 +76,7 @@ impl Default for ModelConfig {
             image_height: 8,
             image_width: 12,
             action_dim: 2,
+            frame_skip: 1,
             channels: vec![8, 16, 32],
             a_channels: vec![1, 8, 16],
             gus: vec![2, 2, 2],
@@ -161,6 +166,9 @@ impl ModelConfig {
         }
         if self.action_dim < 1 {
             return range("action_dim", self.action_dim.to_string(), "must be >= 1");
+        }
+        if !(1..=100).contains(&self.frame_skip) {
+            return range("frame_skip", self.frame_skip.to_string(), "must be in 1..=100");
         }
         if self
             .channels

@@ -22,8 +22,10 @@ pub mod data;
 pub mod eval;
 pub mod figure;
 pub mod layer;
+pub mod live;
 pub mod model;
 pub mod state;
+pub mod sequences;
 pub mod synth;
 pub mod train;
 

@@ -84,18 +84,39 @@ impl MtaPredNet {
         let frame = self.check_frame(frame, b)?;
         self.check_action(action, b)?;
         let (tops, rs) = self.top_down(state, action);
+        Ok(self.bottom_up(tops, rs, Some(frame)))
+    }
+
+    /// One step of imagination: predicts X_0(t) under `action` `[B, A]` and takes the prediction
+    /// as if it had been observed (so E_0(t) = 0). Returns the new state and the prediction
+    /// `[B, 1, H, W]`; one pass, where predicting and then stepping would run the top-down pass
+    /// twice.
+    pub fn f_imagine_step(&self, state: &State, action: &Tensor) -> Result<(State, Tensor), ModelError> {
+        let b = self.check_state(state)?;
+        self.check_action(action, b)?;
+        let (tops, rs) = self.top_down(state, action);
+        let (state, out) = self.bottom_up(tops, rs, None);
+        Ok((state, out.prediction))
+    }
+
+    /// Bottom-up half of a step from the top-down results: errors against `frame`, or against
+    /// the prediction itself when `None` (imagination).
+    fn bottom_up(&self, tops: Vec<UnitStates>, rs: Vec<Tensor>, frame: Option<Tensor>) -> (State, StepOutput) {
         let mut layers = Vec::with_capacity(self.layers.len());
-        let mut errors = Vec::with_capacity(self.layers.len());
+        let mut errors: Vec<Tensor> = Vec::with_capacity(self.layers.len());
         let mut x = frame;
         let mut prediction = None;
         for (l, ((layer, (h, c)), r)) in self.layers.iter().zip(tops).zip(rs).enumerate() {
             if l > 0 {
-                x = layer
-                    .target_from_below(&errors[l - 1])
-                    .expect("layers above 0 have an input conv");
+                x = Some(
+                    layer
+                        .target_from_below(&errors[l - 1])
+                        .expect("layers above 0 have an input conv"),
+                );
             }
             let xhat = layer.predict(&r);
-            let e = PredLayer::error(&x, &xhat);
+            let target = x.get_or_insert_with(|| xhat.shallow_clone());
+            let e = PredLayer::error(target, &xhat);
             if l == 0 {
                 prediction = Some(xhat);
             }
@@ -103,7 +124,7 @@ impl MtaPredNet {
             layers.push(LayerState { h, c, r, e });
         }
         let prediction = prediction.expect("at least one layer");
-        Ok((State { layers }, StepOutput { prediction, errors }))
+        (State { layers }, StepOutput { prediction, errors })
     }
 
     /// Top-down pass for every layer: ((h, c) per layer, R per layer), bottom first.
@@ -170,6 +191,20 @@ impl MtaPredNet {
         frames: &Tensor,
         actions: &Tensor,
     ) -> Result<SequenceOutput, ModelError> {
+        self.f_forward_sequence_imagining(state, frames, actions, i64::MAX)
+    }
+
+    /// [`Self::f_forward_sequence_from`] that observes only the first `observed` frames and
+    /// imagines the rest: from step `observed` on, each step takes its own prediction as the
+    /// input (as a planner's rollout does); predictions and errors are still scored against the
+    /// real frames. Training through this teaches the model to predict several steps ahead.
+    pub fn f_forward_sequence_imagining(
+        &self,
+        state: &State,
+        frames: &Tensor,
+        actions: &Tensor,
+        observed: i64,
+    ) -> Result<SequenceOutput, ModelError> {
         let size = frames.size();
         let (h, w) = (self.cfg.image_height, self.cfg.image_width);
         let frames = match size.as_slice() {
@@ -192,7 +227,14 @@ impl MtaPredNet {
         let mut predictions = Vec::with_capacity(t as usize);
         let mut layer_errors = Vec::with_capacity(t as usize);
         for i in 0..t {
-            let (next, out) = self.f_step(&state, &frames.select(1, i), &actions.select(1, i))?;
+            let (next, out) = if i < observed {
+                self.f_step(&state, &frames.select(1, i), &actions.select(1, i))?
+            } else {
+                let (next, prediction) = self.f_imagine_step(&state, &actions.select(1, i))?;
+                // The loss still compares the prediction with what really came.
+                let out = self.score(&prediction, &frames.select(1, i), &next)?;
+                (next, out)
+            };
             predictions.push(out.prediction);
             let reduced: Vec<Tensor> = out.errors.iter().map(|e| self.reduce_error(e)).collect();
             layer_errors.push(Tensor::stack(&reduced, 1)); // [B, L]
@@ -202,6 +244,19 @@ impl MtaPredNet {
             predictions: Tensor::stack(&predictions, 1),
             layer_errors: Tensor::stack(&layer_errors, 1),
             state,
+        })
+    }
+
+    /// The errors an imagined step would have had against the real frame: layer 0 only (upper
+    /// layers' targets come from errors the imagination never saw); the other layers score 0.
+    fn score(&self, prediction: &Tensor, frame: &Tensor, next: &State) -> Result<StepOutput, ModelError> {
+        let b = prediction.size()[0];
+        let frame = self.check_frame(frame, b)?;
+        let mut errors = vec![PredLayer::error(&frame, prediction)];
+        errors.extend(next.layers.iter().skip(1).map(|l| l.e.zeros_like()));
+        Ok(StepOutput {
+            prediction: prediction.shallow_clone(),
+            errors,
         })
     }
 

@@ -55,6 +55,11 @@ impl State {
         self.map(|t| t.shallow_clone())
     }
 
+    /// A copy that shares no storage with this one (safe to hand to another thread).
+    pub fn deep_copy(&self) -> State {
+        self.map(|t| t.copy())
+    }
+
     /// Moves every tensor to `device`.
     pub fn to(&self, device: Device) -> State {
         self.map(|t| t.to_device(device))

@@ -31,6 +31,10 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Fraction of sequences held out for evaluation when no separate eval set is given.
     pub eval_fraction: f64,
+    /// The last this many steps of each window are imagined: the model takes its own
+    /// prediction as the input there (scored against the real frames), as a planner's rollout
+    /// does. 0: every step observes its frame (one-step prediction only).
+    pub imagined_steps: i64,
 }
 
 impl Default for TrainConfig {
@@ -42,6 +46,7 @@ impl Default for TrainConfig {
             bptt: 20,
             seed: 0,
             eval_fraction: 0.1,
+            imagined_steps: 0,
         }
     }
 }
@@ -153,9 +158,11 @@ impl Trainer {
         actions: &Tensor,
         t0: usize,
     ) -> Result<(UpdateStats, State), TrainError> {
-        let out = self
-            .model
-            .f_forward_sequence_from(&state.detach(), images, actions)?;
+        let steps = images.size().get(1).copied().unwrap_or(0);
+        let observed = (steps - self.train_cfg.imagined_steps.max(0)).max(1);
+        let out =
+            self.model
+                .f_forward_sequence_imagining(&state.detach(), images, actions, observed)?;
         let steps = out.layer_errors.size()[1];
         let loss = weighted_loss(&self.cfg, &out.layer_errors, t0)
             .ok_or(TrainError::NoLossWeight { t0, steps })?;

@@ -22,7 +22,7 @@ pub use config::{SceneConfig, SceneError, shipped_track, tracks_dir};
 pub use teacher::{Teacher, TeacherConfig};
 pub use track::{Track, TrackError};
 pub use truth::GroundTruth;
-pub use world::World;
+pub use world::{World, WorldState};
 
 /// Image rows (height).
 pub const IMAGE_HEIGHT: usize = 8;

@@ -64,6 +64,19 @@ impl Ids {
     }
 }
 
+/// Everything [`World::step`] and [`World::sense`] depend on, to put the world back exactly where
+/// it was: MuJoCo's integration state plus the world's own bookkeeping. The oracle planner and
+/// the counterfactual probe roll candidate futures out from one of these.
+#[derive(Debug, Clone)]
+pub struct WorldState {
+    physics: Box<[f64]>,
+    cmd: [f64; 2],
+    laps: LapCounter,
+}
+
+/// What MuJoCo's state holds for a snapshot: everything integration depends on.
+const STATE_SPEC: u32 = MjtState::mjSTATE_INTEGRATION as u32;
+
 /// A line-tracer car on a track. Not thread-safe to share, but can move between threads.
 pub struct World {
     cfg: SceneConfig,
@@ -350,6 +363,28 @@ impl World {
         }
         let (p, yaw) = mjcf::pose_on_track(&self.track, s_m, lateral_m, yaw_offset);
         self.set_pose(p[0], p[1], yaw)
+    }
+
+    /// The whole state, for [`World::restore`].
+    pub fn snapshot(&mut self) -> WorldState {
+        self.refresh();
+        WorldState {
+            physics: self.data.state(STATE_SPEC),
+            cmd: self.cmd,
+            laps: self.laps.clone(),
+        }
+    }
+
+    /// Puts the world back to a snapshot taken from this world (or one built from the same
+    /// scene): the same commands then give the same sensors, bit for bit.
+    pub fn restore(&mut self, state: &WorldState) {
+        self.data
+            .set_state(&state.physics, STATE_SPEC)
+            .expect("a snapshot of this scene has the state size of this scene");
+        self.cmd = state.cmd;
+        self.laps = state.laps.clone();
+        self.data.forward();
+        self.stale = false;
     }
 
     /// Back to the start pose at rest, time 0, command 0, lap count 0.

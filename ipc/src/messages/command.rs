@@ -5,7 +5,7 @@ use crate::ACTION_DIM;
 
 /// The wheel command answering one observation.
 #[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
-#[type_name("mtanet::Command/v1")]
+#[type_name("mtanet::Command/v2")]
 #[repr(C)]
 pub struct Command {
     /// `CLOCK_MONOTONIC` ns when published.
@@ -22,6 +22,10 @@ pub struct Command {
     pub source: u32,
     /// Predictor's own compute time for this step in ns (saturating).
     pub compute_ns: u32,
+    /// The world model's recent next-frame error over the copy-last-frame error (NaN: none).
+    pub model_error_ratio: f32,
+    /// Counterfactual probe of the weights in use (NaN: not measured).
+    pub probe: f32,
 }
 
 /// Who decided a command.
@@ -34,14 +38,40 @@ pub enum CommandSource {
     Teacher = 1,
     /// Active inference through the world model.
     ActiveInference = 2,
+    /// A random exploration segment while the reactive rule drives (learning data).
+    Exploration = 3,
+    /// The reactive rule after the line was lost under active inference.
+    Fallback = 4,
 }
 
 impl CommandSource {
+    /// Every source, in value order.
+    pub const ALL: [CommandSource; 5] = [
+        Self::Reactive,
+        Self::Teacher,
+        Self::ActiveInference,
+        Self::Exploration,
+        Self::Fallback,
+    ];
+
+    /// Lower-case name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Reactive => "reactive",
+            Self::Teacher => "teacher",
+            Self::ActiveInference => "active_inference",
+            Self::Exploration => "exploration",
+            Self::Fallback => "fallback",
+        }
+    }
+
     pub fn from_u32(v: u32) -> Option<Self> {
         match v {
             0 => Some(Self::Reactive),
             1 => Some(Self::Teacher),
             2 => Some(Self::ActiveInference),
+            3 => Some(Self::Exploration),
+            4 => Some(Self::Fallback),
             _ => None,
         }
     }

@@ -3,11 +3,13 @@
 mod command;
 mod observation;
 mod replay;
+mod trainer_status;
 mod weights;
 
 pub use command::{Command, CommandSource};
 pub use observation::{GroundTruth, Observation};
 pub use replay::ReplayChunk;
+pub use trainer_status::TrainerStatus;
 pub use weights::WeightsHeader;
 
 #[cfg(test)]

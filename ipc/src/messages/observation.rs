@@ -6,7 +6,7 @@ use crate::{ACTION_DIM, IMAGE_PIXELS};
 /// What the simulator sees at one control step. Published every `CONTROL_PERIOD_S` of simulated
 /// time; the image and wheel velocities are the model's input, `truth` is for evaluation only.
 #[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
-#[type_name("mtanet::Observation/v1")]
+#[type_name("mtanet::Observation/v2")]
 #[repr(C)]
 pub struct Observation {
     /// `CLOCK_MONOTONIC` ns when published (see [`crate::stamp`]).
@@ -17,13 +17,18 @@ pub struct Observation {
     pub sim_time_s: f64,
     /// Middle camera, grey in [0, 1], row-major `IMAGE_HEIGHT x IMAGE_WIDTH`.
     pub image: [f32; IMAGE_PIXELS],
-    /// Measured wheel velocities (rad/s, left/right) that moved the world into this frame.
+    /// Measured wheel velocities (rad/s, left/right) at this frame (they lag the command).
     pub wheel_velocity: [f32; ACTION_DIM],
+    /// The wheel command applied during the step that led to this frame (whoever decided it):
+    /// the action the world model is conditioned on, as in the replay chunks.
+    pub command: [f32; ACTION_DIM],
     /// Line sensors left, middle, right: 1 when over the line.
     pub line_sensors: [u8; 3],
     /// Episode counter, bumped when the simulator resets the car.
     pub episode: u8,
-    pub _reserved: [u8; 4],
+    /// 1 when the simulator waits for every command (lockstep), 0 in real time.
+    pub lockstep: u8,
+    pub _reserved: [u8; 3],
     pub truth: GroundTruth,
 }
 

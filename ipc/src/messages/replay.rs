@@ -3,11 +3,12 @@ use iceoryx2::prelude::ZeroCopySend;
 
 use crate::{ACTION_DIM, IMAGE_PIXELS, REPLAY_STEPS};
 
-/// `REPLAY_STEPS` consecutive steps for the trainer: one training sequence, in the dataset
-/// convention of the project (`actions[t]` is what moved the world from frame t-1 to frame t).
-/// ~7.9 KB, written in place in shared memory by the simulator.
+/// `REPLAY_STEPS` consecutive steps for the trainer, in the dataset convention of the project:
+/// `actions[t]` is the wheel command applied from frame t-1 to frame t (the quantity a planner
+/// chooses, not the measured wheel speed, which lags it). Consecutive chunks of one episode join
+/// into longer sequences. ~7.9 KB, written in place in shared memory by the simulator.
 #[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
-#[type_name("mtanet::ReplayChunk/v1")]
+#[type_name("mtanet::ReplayChunk/v2")]
 #[repr(C)]
 pub struct ReplayChunk {
     /// `CLOCK_MONOTONIC` ns when published.
@@ -22,4 +23,7 @@ pub struct ReplayChunk {
     pub episode: u32,
     pub images: [[f32; IMAGE_PIXELS]; REPLAY_STEPS],
     pub actions: [[f32; ACTION_DIM]; REPLAY_STEPS],
+    /// Who decided `actions[t]` (a `CommandSource` as u8), e.g. to count exploratory data.
+    pub sources: [u8; REPLAY_STEPS],
+    pub _reserved: [u8; 4],
 }

@@ -9,18 +9,20 @@ use super::*;
 #[test]
 fn sizes_and_alignment_are_pinned() {
     assert_eq!(size_of::<GroundTruth>(), 48);
-    assert_eq!(size_of::<Observation>(), 8 * 3 + 96 * 4 + 8 + 8 + 48);
-    assert_eq!(size_of::<Command>(), 8 * 4 + 8 + 8);
+    assert_eq!(size_of::<Observation>(), 8 * 3 + 96 * 4 + 8 + 8 + 8 + 48);
+    assert_eq!(size_of::<Command>(), 8 * 4 + 8 + 8 + 8);
     assert_eq!(
         size_of::<ReplayChunk>(),
-        8 * 3 + 8 + 20 * 96 * 4 + 20 * 2 * 4
+        8 * 3 + 8 + 20 * 96 * 4 + 20 * 2 * 4 + 24
     );
-    assert_eq!(size_of::<WeightsHeader>(), 8 * 4 + 8);
+    assert_eq!(size_of::<WeightsHeader>(), 8 * 4 + 8 + 16);
+    assert_eq!(size_of::<TrainerStatus>(), 8 * 5 + 8);
     for a in [
         align_of::<Observation>(),
         align_of::<Command>(),
         align_of::<ReplayChunk>(),
         align_of::<WeightsHeader>(),
+        align_of::<TrainerStatus>(),
     ] {
         assert_eq!(a, 8);
     }
@@ -30,7 +32,9 @@ fn sizes_and_alignment_are_pinned() {
 fn field_offsets_are_pinned() {
     assert_eq!(core::mem::offset_of!(Observation, image), 24);
     assert_eq!(core::mem::offset_of!(Observation, wheel_velocity), 24 + 384);
-    assert_eq!(core::mem::offset_of!(Observation, truth), 24 + 384 + 16);
+    assert_eq!(core::mem::offset_of!(Observation, command), 24 + 384 + 8);
+    assert_eq!(core::mem::offset_of!(Observation, truth), 24 + 384 + 24);
+    assert_eq!(core::mem::offset_of!(ReplayChunk, sources), 32 + 7680 + 160);
     assert_eq!(core::mem::offset_of!(Command, wheel_velocity), 32);
     assert_eq!(core::mem::offset_of!(ReplayChunk, images), 32);
 }
@@ -45,27 +49,25 @@ fn type_names_are_stable_and_distinct() {
             Command::type_name(),
             ReplayChunk::type_name(),
             WeightsHeader::type_name(),
+            TrainerStatus::type_name(),
         ]
     };
     assert_eq!(
         names,
         [
-            "mtanet::Observation/v1",
+            "mtanet::Observation/v2",
             "mtanet::GroundTruth/v1",
-            "mtanet::Command/v1",
-            "mtanet::ReplayChunk/v1",
-            "mtanet::WeightsHeader/v1",
+            "mtanet::Command/v2",
+            "mtanet::ReplayChunk/v2",
+            "mtanet::WeightsHeader/v2",
+            "mtanet::TrainerStatus/v1",
         ]
     );
 }
 
 #[test]
 fn command_source_round_trips() {
-    for s in [
-        CommandSource::Reactive,
-        CommandSource::Teacher,
-        CommandSource::ActiveInference,
-    ] {
+    for s in CommandSource::ALL {
         assert_eq!(CommandSource::from_u32(s as u32), Some(s));
     }
     assert_eq!(CommandSource::from_u32(7), None);

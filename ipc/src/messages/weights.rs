@@ -4,7 +4,7 @@ use iceoryx2::prelude::ZeroCopySend;
 /// User header of the weights topic, whose payload is a `[u8]` slice holding one checkpoint
 /// (safetensors with config and metadata, exactly the bytes of a checkpoint file).
 #[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
-#[type_name("mtanet::WeightsHeader/v1")]
+#[type_name("mtanet::WeightsHeader/v2")]
 #[repr(C)]
 pub struct WeightsHeader {
     /// `CLOCK_MONOTONIC` ns when published.
@@ -19,4 +19,9 @@ pub struct WeightsHeader {
     pub loss: f32,
     /// Checkpoint schema version.
     pub schema: u32,
+    /// Training step at which the trainer last ran the counterfactual probe (0: never).
+    pub probe_step: u64,
+    /// That probe's rank correlation (NaN: never measured).
+    pub probe: f32,
+    pub _reserved: u32,
 }

@@ -1,77 +1,78 @@
-//! Cost of one predictor decision with the default model: stepping the world model with a frame,
-//! and active-inference planning for several candidate grids and horizons. Prints a table of
-//! percentiles. The 50 Hz loop has 20 ms per step, of which the simulator waits at most half
-//! for a command in realtime mode.
+//! Cost of the predictor's work with the default model: a model step (every `frame_skip`
+//! control steps), batched imagination of K candidate plans, and whole plans (CEM over the
+//! imagination, run on the planner's thread). Prints a table of percentiles. In real time a plan
+//! has one segment (`frame_skip` x 20 ms) of wall time; a control step at most 10 ms.
 //!
 //! `cargo bench -p mtanet-predictor`
 
 use std::time::Instant;
 
+use mtanet_control::preference::{Contrast, PreferredLine};
+use mtanet_control::{Cost, CostConfig, Drive, FrameShape, Imagination, Planner, PlannerConfig};
 use mtanet_ipc::latency::LatencyStats;
-use mtanet_ipc::{IMAGE_PIXELS, Observation};
+use mtanet_models::live::{Imagined, LiveModel};
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};
-use mtanet_predictor::active_inference::{ActiveInferenceConfig, candidates, choose};
-use mtanet_predictor::world_model::WorldModel;
-use tch::Tensor;
+
+fn row(name: &str, s: &LatencyStats) {
+    let m = s.summary();
+    println!(
+        "| {name:<40} | {:>8.3} | {:>8.3} | {:>8.3} | {:>8.3} |",
+        m.p50_us / 1000.0,
+        m.p99_us / 1000.0,
+        m.p999_us / 1000.0,
+        m.max_us / 1000.0
+    );
+}
 
 fn main() {
     tch::set_num_threads(1);
-    let bytes = Trainer::new(&ModelConfig::default(), &TrainConfig::default())
-        .checkpoint_bytes(None)
-        .unwrap();
-    let mut world = WorldModel::from_bytes(&bytes, 1).unwrap();
-    let mut obs: Observation = bytemuck::Zeroable::zeroed();
-    obs.wheel_velocity = [8.0, 8.0];
-    let preferred = Tensor::full([1, 1, 8, 12], 0.8, (tch::Kind::Float, tch::Device::Cpu));
-    let n = 200;
-
-    println!(
-        "{:<44}{:>10}{:>10}{:>10}{:>10}",
-        "predictor decision (1 torch thread)", "p50 ms", "p99 ms", "p99.9 ms", "max ms"
-    );
-    let mut stats = LatencyStats::new();
-    for i in 0..n {
-        obs.image = [0.5 + 0.001 * (i % 7) as f32; IMAGE_PIXELS];
+    let cfg = ModelConfig {
+        frame_skip: 5,
+        ..ModelConfig::default()
+    };
+    let bytes = Trainer::new(&cfg, &TrainConfig::default()).checkpoint_bytes(None).unwrap();
+    let mut live = LiveModel::from_bytes(&bytes, 1).unwrap();
+    let frame = [0.5f32; 96];
+    println!("| {:<40} | {:>8} | {:>8} | {:>8} | {:>8} |", "predictor work (1 torch thread)", "p50 ms", "p99 ms", "p99.9 ms", "max ms");
+    println!("|{:-<42}|{:-<10}|{:-<10}|{:-<10}|{:-<10}|", "", "", "", "", "");
+    let mut s = LatencyStats::new();
+    for _ in 0..500 {
         let t = Instant::now();
-        world.observe(&obs).unwrap();
-        stats.record_ns(t.elapsed().as_nanos() as u64);
+        live.observe_frame(&frame, [8.0, 8.0]).unwrap();
+        s.record_ns(t.elapsed().as_nanos() as u64);
     }
-    row("observe (model step, batch 1)", &stats);
-
-    for (speeds, turns, horizon) in [
-        (vec![8.0], vec![-6.0, -3.0, 0.0, 3.0, 6.0], 1usize),
-        (vec![8.0], vec![-6.0, -3.0, 0.0, 3.0, 6.0], 3),
-        (vec![5.0, 8.0, 11.0], vec![-6.0, -3.0, 0.0, 3.0, 6.0], 1),
-        (vec![5.0, 8.0, 11.0], vec![-6.0, -3.0, 0.0, 3.0, 6.0], 3),
-        (vec![5.0, 8.0, 11.0], vec![-6.0, -3.0, 0.0, 3.0, 6.0], 5),
-    ] {
-        let cfg = ActiveInferenceConfig {
-            speeds,
-            turns,
-            horizon,
-            ..Default::default()
-        };
-        let cands = candidates(&cfg);
-        let mut stats = LatencyStats::new();
-        for _ in 0..n / 4 {
+    row("model step (batch 1)", &s);
+    let mut im = Imagined::from_bytes(&bytes).unwrap();
+    for (k, h) in [(16, 4), (32, 4), (64, 4), (16, 15)] {
+        let plans = vec![vec![Drive::new(8.0, 1.0); h]; k];
+        let mut s = LatencyStats::new();
+        for _ in 0..60 {
+            im.start(live.state().deep_copy(), [8.0, 8.0]).unwrap();
             let t = Instant::now();
-            choose(&world, &cands, &preferred, [8.0, 8.0], &cfg).unwrap();
-            stats.record_ns(t.elapsed().as_nanos() as u64);
+            im.imagine(&plans).unwrap();
+            s.record_ns(t.elapsed().as_nanos() as u64);
         }
-        row(
-            &format!("plan K={} horizon={}", cands.len(), cfg.horizon),
-            &stats,
-        );
+        row(&format!("imagine K = {k} plans x {h} segments"), &s);
     }
-}
-
-fn row(name: &str, stats: &LatencyStats) {
-    let s = stats.summary();
-    println!(
-        "{name:<44}{:>10.2}{:>10.2}{:>10.2}{:>10.2}",
-        s.p50_us / 1e3,
-        s.p99_us / 1e3,
-        s.p999_us / 1e3,
-        s.max_us / 1e3
-    );
+    let rows = 8;
+    let preferred = PreferredLine {
+        shape: FrameShape::CAR,
+        contrast: Contrast { floor: 0.85, amplitude: 0.75 },
+        position_mean: vec![0.0; rows],
+        position_cov: (0..rows * rows).map(|i| if i / rows == i % rows { 0.01 } else { 0.0 }).collect(),
+        mass_mean: vec![3.0; rows],
+        frames: 100,
+    };
+    let cost = Cost::new(preferred, CostConfig::default());
+    for pc in [PlannerConfig::default(), PlannerConfig { samples: 16, iterations: 2, ..Default::default() }] {
+        let mut planner = Planner::new(&pc).unwrap();
+        let mut s = LatencyStats::new();
+        for _ in 0..40 {
+            let t = Instant::now();
+            im.start(live.state().deep_copy(), [8.0, 8.0]).unwrap();
+            planner.plan(&mut im, &cost, Drive::new(8.0, 0.0)).unwrap();
+            s.record_ns(t.elapsed().as_nanos() as u64);
+        }
+        row(&format!("plan: CEM {} x {} iterations, H = {}", pc.samples, pc.iterations, pc.horizon), &s);
+    }
 }

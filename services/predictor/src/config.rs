@@ -1,33 +1,33 @@
 //! `[predictor]` section of the stack's config file.
 
+use mtanet_control::{AgentConfig, ExplorationConfig, ReactiveConfig};
 use serde::{Deserialize, Serialize};
-
-use crate::active_inference::ActiveInferenceConfig;
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PredictorConfig {
-    /// Forward wheel speed of the reactive rule, rad/s.
-    pub cruise: f32,
-    /// Wheel speed difference of the reactive rule when a side sensor sees the line, rad/s.
-    pub turn: f32,
     /// Seconds of wall clock between progress log lines.
     pub log_every_s: f64,
     /// libtorch intra-op threads. One: on these tiny tensors dispatch dominates, and a second
-    /// thread collapses throughput when another process holds the other core (FACTS.md).
+    /// thread collapses throughput when another process holds the other core.
     pub torch_threads: i32,
-    /// `[predictor.active_inference]`: model-based control once the model is trusted.
-    pub active_inference: ActiveInferenceConfig,
+    /// `[predictor.reactive]`: the line-sensor rule before the model is trusted, and fallback.
+    pub reactive: ReactiveConfig,
+    /// `[predictor.exploration]`: random command segments while the reactive rule drives.
+    pub exploration: ExplorationConfig,
+    /// `[predictor.active_inference]` (with `.cost` and `.planner`): when the model is
+    /// trusted, and how plans are made and scored.
+    pub active_inference: AgentConfig,
 }
 
 impl Default for PredictorConfig {
     fn default() -> Self {
         Self {
-            cruise: 8.0,
-            turn: 6.0,
             log_every_s: 5.0,
             torch_threads: 1,
-            active_inference: ActiveInferenceConfig::default(),
+            reactive: ReactiveConfig::default(),
+            exploration: ExplorationConfig::default(),
+            active_inference: AgentConfig::default(),
         }
     }
 }

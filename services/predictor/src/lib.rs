@@ -1,9 +1,7 @@
-//! The predictor process: answers every observation with a wheel command. The policy is chosen
-//! per step: active inference through the world model once weights have arrived from the trainer,
-//! a reactive line-sensor rule before that.
+//! The predictor process: answers every observation with a wheel command. The control agent
+//! (`mtanet-control`) decides: the reactive line-sensor rule with exploration until the world
+//! model the trainer sends is trusted, then active inference planning through it.
 
-pub mod active_inference;
 pub mod config;
 pub mod policy;
 pub mod service;
-pub mod world_model;

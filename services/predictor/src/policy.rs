@@ -1,209 +1,170 @@
-//! Policies turn an observation into wheel velocities: active inference through the world model
-//! when it is loaded and trusted, the reactive line-sensor rule otherwise.
+//! The predictor's decisions: the control agent ([`mtanet_control::Agent`]) with the newest
+//! weights as its world model, planning on a thread of its own. Weights are checked whole and
+//! against the wire contract before they replace anything; a bad blob leaves the car as it was.
 
-use mtanet_ipc::{CommandSource, Observation};
+use std::sync::Arc;
 
-use crate::active_inference::{self, ActiveInferenceConfig, Preference};
+use anyhow::ensure;
+use mtanet_control::{Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, Threaded, Tick};
+use mtanet_ipc::{ACTION_DIM, CONTROL_PERIOD_S, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation};
+use mtanet_models::ModelConfig;
+use mtanet_models::live::{Imagined, LiveModel};
+
 use crate::config::PredictorConfig;
-use crate::world_model::WorldModel;
 
-/// The fallback before any usable weights exist: steer toward the side sensor that sees the
-/// line. Deliberately simple; it only has to keep the car near the line while data accumulates.
-#[derive(Debug, Clone)]
-pub struct Reactive {
-    cruise: f32,
-    turn: f32,
-    last_side: f32,
+/// A checkpoint's network must read the frames and actions the simulator sends.
+pub fn check_wire_contract(cfg: &ModelConfig) -> anyhow::Result<()> {
+    ensure!(
+        (cfg.image_height, cfg.image_width) == (IMAGE_HEIGHT as i64, IMAGE_WIDTH as i64),
+        "the checkpoint's model takes {}x{} images, the simulator sends {IMAGE_HEIGHT}x{IMAGE_WIDTH}",
+        cfg.image_height,
+        cfg.image_width
+    );
+    ensure!(
+        cfg.action_dim == ACTION_DIM as i64,
+        "the checkpoint's model takes {} action values, the commands have {ACTION_DIM}",
+        cfg.action_dim
+    );
+    Ok(())
 }
 
-impl Reactive {
-    pub fn new(cfg: &PredictorConfig) -> Self {
-        Self {
-            cruise: cfg.cruise,
-            turn: cfg.turn,
-            last_side: 0.0,
-        }
-    }
-
-    pub fn act(&mut self, obs: &Observation) -> [f32; 2] {
-        let [l, m, r] = obs.line_sensors.map(|v| v != 0);
-        // +1: turn left, -1: turn right.
-        let side = match (l, m, r) {
-            (true, _, false) => 1.0,
-            (false, _, true) => -1.0,
-            (false, false, false) => self.last_side,
-            _ => 0.0,
-        };
-        if side != 0.0 {
-            self.last_side = side;
-        }
-        let (c, t) = (self.cruise, self.turn * side);
-        [c - t, c + t]
+pub fn source_of(driver: Driver) -> CommandSource {
+    match driver {
+        Driver::Reactive => CommandSource::Reactive,
+        Driver::Exploration => CommandSource::Exploration,
+        Driver::ActiveInference => CommandSource::ActiveInference,
+        Driver::Fallback => CommandSource::Fallback,
     }
 }
 
-/// Everything the predictor decides with.
 pub struct Policy {
-    reactive: Reactive,
-    pub world: Option<WorldModel>,
-    preference: Preference,
-    cfg: ActiveInferenceConfig,
-    candidates: Vec<[f32; 2]>,
-    previous: [f32; 2],
-    episode: Option<u8>,
-    /// The latest observation, while the world model has not seen it (`act` did not need it).
-    unobserved: Option<Observation>,
+    agent: Agent,
+    cfg: PredictorConfig,
+    pub model: Option<LiveModel>,
+    planner: Option<Threaded<Imagined>>,
 }
 
 impl Policy {
     pub fn new(cfg: &PredictorConfig) -> Self {
         Self {
-            reactive: Reactive::new(cfg),
-            world: None,
-            preference: Preference::default(),
-            candidates: active_inference::candidates(&cfg.active_inference),
-            cfg: cfg.active_inference.clone(),
-            previous: [0.0; 2],
-            episode: None,
-            unobserved: None,
+            agent: Agent::new(
+                &cfg.active_inference,
+                &cfg.reactive,
+                &cfg.exploration,
+                FrameShape::CAR,
+                CONTROL_PERIOD_S as f32,
+            ),
+            cfg: cfg.clone(),
+            model: None,
+            planner: None,
         }
     }
 
-    /// Decides the next command. Only active inference needs the world model stepped with this
-    /// frame first; otherwise the command goes out at once and [`Policy::after_command`] steps
-    /// the model, so bookkeeping never delays the car.
-    pub fn act(&mut self, obs: &Observation) -> anyhow::Result<([f32; 2], CommandSource)> {
-        self.after_command()?; // catch up if the caller skipped it for the previous frame
-        if self.episode.is_some_and(|e| e != obs.episode) {
-            // The simulator put the car back: the past no longer predicts the present.
-            if let Some(world) = self.world.as_mut() {
-                world.reset_state();
-            }
-            self.reactive.last_side = 0.0;
-            self.previous = [0.0; 2];
-        }
-        self.episode = Some(obs.episode);
-        self.preference.observe(obs);
-        let mut decided = None;
-        if self.cfg.enabled
-            && let Some(world) = self.world.as_mut()
-            && world.trusted(self.cfg.trust_ratio, self.cfg.trust_after_steps)
-            && let Some(preferred) = self.preference.image(self.cfg.preference_frames)
-        {
-            world.observe(obs)?;
-            let (cmd, _cost) = active_inference::choose(
-                world,
-                &self.candidates,
-                &preferred,
-                self.previous,
-                &self.cfg,
-            )?;
-            decided = Some((cmd, CommandSource::ActiveInference));
-        }
-        let (cmd, source) =
-            decided.unwrap_or_else(|| (self.reactive.act(obs), CommandSource::Reactive));
-        self.previous = cmd;
-        if source == CommandSource::Reactive && self.world.is_some() {
-            self.unobserved = Some(*obs);
-        }
-        Ok((cmd, source))
+    pub fn stats(&self) -> AgentStats {
+        self.agent.stats
     }
 
-    /// Work the command did not wait for: steps the world model with the frame `act` decided
-    /// on without it. Returns whether there was such a frame.
-    pub fn after_command(&mut self) -> anyhow::Result<bool> {
-        match (self.world.as_mut(), self.unobserved.take()) {
-            (Some(world), Some(obs)) => {
-                world.observe(&obs)?;
-                Ok(true)
-            }
-            _ => Ok(false),
+    /// Decides the command for this observation.
+    pub fn act(&mut self, obs: &Observation) -> anyhow::Result<Decision> {
+        let tick = Tick {
+            episode: u32::from(obs.episode),
+            frame: &obs.image,
+            line: obs.line_sensors.map(|v| v != 0),
+            applied: obs.command,
+            lockstep: obs.lockstep != 0,
+        };
+        match (self.model.as_mut(), self.planner.as_mut()) {
+            (Some(model), Some(planner)) => self.agent.tick(&tick, model, planner),
+            _ => self.agent.tick(&tick, &mut Blind, &mut NoPlans),
         }
+    }
+
+    /// New weights from the trainer (`probe`: its counterfactual probe, NaN if none). Returns
+    /// the error if they were refused; the previous model then keeps driving.
+    pub fn load_weights(&mut self, bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<()> {
+        let probe = probe.is_finite().then_some(f64::from(probe));
+        // Decode and check completely before anything is replaced.
+        let fresh = LiveModel::from_bytes(bytes, version)?;
+        check_wire_contract(fresh.config())?;
+        match (self.model.as_mut(), self.planner.as_ref()) {
+            (Some(model), Some(planner)) if model.config() == fresh.config() => {
+                model.update(bytes, version)?;
+                let shared: Arc<[u8]> = bytes.into();
+                planner.update(move |im| {
+                    if let Err(e) = im.update(&shared) {
+                        tracing::error!("planner could not take the new weights: {e}");
+                    }
+                })?;
+            }
+            _ => {
+                // First weights, or another network: a new model and planner.
+                let imagined = Imagined::from_bytes(bytes)?;
+                let planner = Planner::new(&self.cfg.active_inference.planner)?;
+                let threads = self.cfg.torch_threads;
+                self.planner = Some(Threaded::spawn(planner, imagined, move || {
+                    tch::set_num_threads(threads)
+                })?);
+                self.model = Some(fresh);
+            }
+        }
+        if let Some(m) = self.model.as_mut() {
+            m.probe = probe;
+        }
+        Ok(())
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mtanet_models::{TrainConfig, Trainer};
 
-    fn obs(line: [u8; 3]) -> Observation {
+    pub(crate) fn small_checkpoint(seed: u64, cfg: ModelConfig) -> Vec<u8> {
+        Trainer::new(&cfg, &TrainConfig { seed, ..Default::default() })
+            .checkpoint_bytes(None)
+            .unwrap()
+    }
+
+    fn small() -> ModelConfig {
+        ModelConfig {
+            channels: vec![4, 4, 4],
+            a_channels: vec![1, 4, 4],
+            frame_skip: 2,
+            ..Default::default()
+        }
+    }
+
+    fn obs(line: [u8; 3], step: u64) -> Observation {
         let mut o: Observation = bytemuck::Zeroable::zeroed();
         o.line_sensors = line;
+        o.step = step;
+        o.lockstep = 1;
         o
     }
 
     #[test]
-    fn reactive_turns_toward_the_line() {
-        let mut p = Reactive::new(&PredictorConfig::default());
-        let [l, r] = p.act(&obs([1, 0, 0]));
-        assert!(r > l, "line on the left must turn left: {l} {r}");
-        let [l, r] = p.act(&obs([0, 0, 1]));
-        assert!(l > r, "line on the right must turn right: {l} {r}");
-        let [l, r] = p.act(&obs([0, 1, 0]));
-        assert_eq!(l, r);
-        // Lost: keep turning toward where the line was last seen (right).
-        let [l, r] = p.act(&obs([0, 0, 0]));
-        assert!(l > r);
-    }
-
-    #[test]
-    fn without_a_model_the_reactive_rule_drives() {
+    fn without_weights_the_reactive_rule_drives_and_bad_weights_change_nothing() {
         let mut p = Policy::new(&PredictorConfig::default());
-        let (_, source) = p.act(&obs([0, 1, 0])).unwrap();
-        assert_eq!(source, CommandSource::Reactive);
-    }
-
-    #[test]
-    fn the_command_waits_for_the_world_model_only_when_planning_needs_it() {
-        use crate::active_inference::ActiveInferenceConfig;
-        use crate::world_model::tests::small_checkpoint;
-        let steps = |p: &Policy| p.world.as_ref().unwrap().steps;
-        let mut p = Policy::new(&PredictorConfig::default());
-        p.world = Some(WorldModel::from_bytes(&small_checkpoint(1), 1).unwrap());
-        let (_, source) = p.act(&obs([0, 1, 0])).unwrap();
-        assert_eq!(source, CommandSource::Reactive);
-        assert_eq!(
-            steps(&p),
-            0,
-            "the reactive command goes out before the model step"
-        );
-        assert!(p.after_command().unwrap());
-        assert_eq!(steps(&p), 1);
-        assert!(!p.after_command().unwrap(), "each frame is observed once");
-        // A caller that skips after_command loses no frame: the next act catches up first.
-        p.act(&obs([0, 1, 0])).unwrap();
-        p.act(&obs([0, 1, 0])).unwrap();
-        assert_eq!(steps(&p), 2);
-
-        // Planning with a trusted model steps the model before deciding, and leaves nothing over.
-        let cfg = PredictorConfig {
-            active_inference: ActiveInferenceConfig {
-                enabled: true,
-                trust_ratio: 1e9,
-                trust_after_steps: 0,
-                preference_frames: 1,
-                ..Default::default()
-            },
-            ..Default::default()
-        };
-        let mut p = Policy::new(&cfg);
-        p.world = Some(WorldModel::from_bytes(&small_checkpoint(1), 1).unwrap());
-        let lit = |v: f32| Observation {
-            image: [v; mtanet_ipc::IMAGE_PIXELS],
-            ..obs([0, 1, 0])
-        };
-        for v in [0.2, 0.6] {
-            let (_, source) = p.act(&lit(v)).unwrap();
-            assert_eq!(
-                source,
-                CommandSource::Reactive,
-                "no statistics yet: not trusted"
-            );
-            p.after_command().unwrap();
+        let d = p.act(&obs([0, 1, 0], 0)).unwrap();
+        assert!(matches!(d.driver, Driver::Reactive | Driver::Exploration));
+        let mut bad = small_checkpoint(1, small());
+        bad.truncate(bad.len() / 2);
+        assert!(p.load_weights(&bad, 1, f32::NAN).is_err());
+        assert!(p.model.is_none());
+        let wrong = small_checkpoint(1, ModelConfig { action_dim: 3, ..small() });
+        let e = p.load_weights(&wrong, 2, f32::NAN).unwrap_err().to_string();
+        assert!(e.contains("action values"), "{e}");
+        assert!(p.model.is_none(), "a checkpoint off the wire contract is refused");
+        p.load_weights(&small_checkpoint(1, small()), 3, 0.5).unwrap();
+        let m = p.model.as_ref().unwrap();
+        assert_eq!((m.version, m.probe), (3, Some(0.5)));
+        // The model steps every frame_skip (2) observations.
+        for s in 1..=6 {
+            p.act(&obs([0, 1, 0], s)).unwrap();
         }
-        let (_, source) = p.act(&lit(0.4)).unwrap();
-        assert_eq!(source, CommandSource::ActiveInference);
-        assert_eq!(steps(&p), 3, "planning needed this frame first");
-        assert!(!p.after_command().unwrap());
+        assert_eq!(p.model.as_ref().unwrap().steps, 3);
+        p.load_weights(&small_checkpoint(2, small()), 4, f32::NAN).unwrap();
+        let m = p.model.as_ref().unwrap();
+        assert_eq!((m.version, m.steps, m.probe), (4, 3, None), "same network: updated in place");
     }
 }

@@ -10,12 +10,12 @@ use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsReceiver;
-use mtanet_ipc::{Command, CommandSource, Observation, names, stamp};
+use mtanet_control::AgentStats;
+use mtanet_ipc::{Command, Observation, names, stamp};
 use serde::{Deserialize, Serialize};
 
 use crate::config::PredictorConfig;
-use crate::policy::Policy;
-use crate::world_model::WorldModel;
+use crate::policy::{Policy, source_of};
 
 pub struct Ports {
     pub observations: Receiver<Observation>,
@@ -44,18 +44,20 @@ pub struct Summary {
     /// Weights that failed to decode or did not fit; the previous model stayed in use.
     pub weights_rejected: u64,
     pub model_version: u64,
-    /// Steps decided by active inference / by the reactive rule.
-    pub active_inference_steps: u64,
-    pub reactive_steps: u64,
+    /// Who drove, switches, fallbacks, plans (late ones included).
+    pub control: AgentStats,
     /// Recent next-frame MSE of the model and of copying the last frame (the bar to beat).
     pub model_mse: Option<f64>,
     pub copy_last_mse: Option<f64>,
+    /// Counterfactual probe of the weights in use.
+    pub probe: Option<f64>,
     /// Observation published -> command decided (transport in + own compute).
     pub observation_age: LatencySummary,
-    /// Own compute per step until the command is sent (policy only).
+    /// Own compute per step until the command is sent (the model step included, every
+    /// `frame_skip` steps, and waiting for a plan).
     pub compute: LatencySummary,
-    /// World-model step done after the command was sent, when the policy did not need it.
-    pub world_update: LatencySummary,
+    /// Wall time of each plan taken up (computed on the planner's thread).
+    pub plan: LatencySummary,
 }
 
 /// Per-step latencies the loop records.
@@ -63,7 +65,7 @@ pub struct Summary {
 struct StepStats {
     age: LatencyStats,
     compute: LatencyStats,
-    world_update: LatencyStats,
+    plan: LatencyStats,
 }
 
 pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
@@ -106,17 +108,17 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
         watchdog.pet();
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
-            let (model_mse, copy_mse) = policy
-                .world
-                .as_ref()
-                .map_or((None, None), |w| (w.model_mse.get(), w.copy_mse.get()));
+            let ratio = policy.model.as_ref().and_then(|m| m.error_ratio());
+            let c = policy.stats();
             tracing::info!(
                 answered = summary.commands_sent,
-                active_inference = summary.active_inference_steps,
-                model_mse = ?model_mse,
-                copy_last_mse = ?copy_mse,
+                active_inference = c.active_inference_steps,
+                fallbacks = c.fallbacks,
+                late_plans = c.late_plans,
+                model_over_copy_last = ?ratio,
+                probe = ?policy.model.as_ref().and_then(|m| m.probe),
                 compute = %stats.compute.summary(),
-                world_update = %stats.world_update.summary(),
+                plan = %stats.plan.summary(),
                 "running"
             );
         }
@@ -124,13 +126,15 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
     if let Some(e) = failure {
         return Err(e);
     }
-    if let Some(w) = &policy.world {
-        summary.model_mse = w.model_mse.get();
-        summary.copy_last_mse = w.copy_mse.get();
+    if let Some(m) = &policy.model {
+        summary.model_mse = m.model_mse.get();
+        summary.copy_last_mse = m.copy_mse.get();
+        summary.probe = m.probe;
     }
+    summary.control = policy.stats();
     summary.observation_age = stats.age.summary();
     summary.compute = stats.compute.summary();
-    summary.world_update = stats.world_update.summary();
+    summary.plan = stats.plan.summary();
     Ok(summary)
 }
 
@@ -151,27 +155,25 @@ fn answer_observations(
         }
         *expected_step = Some(obs.step + 1);
         let t0 = Instant::now();
-        let (wheels, source) = policy.act(&obs)?;
-        match source {
-            CommandSource::ActiveInference => summary.active_inference_steps += 1,
-            _ => summary.reactive_steps += 1,
-        }
+        let decision = policy.act(&obs)?;
         let compute_ns = t0.elapsed().as_nanos() as u64;
+        let (ratio, probe) = policy.model.as_ref().map_or((None, None), |m| (m.error_ratio(), m.probe));
         ports.commands.send_with(|c| {
             c.step = obs.step;
             c.obs_stamp_ns = obs.stamp_ns;
             c.model_version = summary.model_version;
-            c.wheel_velocity = wheels;
-            c.source = source as u32;
+            c.wheel_velocity = decision.wheels;
+            c.source = source_of(decision.driver) as u32;
             c.compute_ns = compute_ns.min(u64::from(u32::MAX)) as u32;
+            c.model_error_ratio = ratio.map_or(f32::NAN, |r| r as f32);
+            c.probe = probe.map_or(f32::NAN, |p| p as f32);
             c.stamp_ns = stamp::monotonic_ns();
         })?;
         summary.commands_sent += 1;
         stats.compute.record_ns(compute_ns);
         stats.age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
-        let t1 = Instant::now();
-        if policy.after_command()? {
-            stats.world_update.record_ns(t1.elapsed().as_nanos() as u64);
+        if let Some((_, plan)) = &decision.plan {
+            stats.plan.record_ns(plan.as_nanos() as u64);
         }
     }
     Ok(())
@@ -183,10 +185,7 @@ fn receive_weights(
     summary: &mut Summary,
 ) -> anyhow::Result<()> {
     let outcome = ports.weights.latest(|h, bytes| {
-        let result = match policy.world.as_mut() {
-            Some(world) => world.update(bytes, h.version),
-            None => WorldModel::from_bytes(bytes, h.version).map(|w| policy.world = Some(w)),
-        };
+        let result = policy.load_weights(bytes, h.version, h.probe);
         (h.version, h.train_step, bytes.len(), result)
     })?;
     if let Some((version, train_step, len, result)) = outcome {
@@ -194,7 +193,8 @@ fn receive_weights(
         match result {
             Ok(()) => {
                 summary.model_version = version;
-                tracing::info!(version, train_step, bytes = len, "weights loaded");
+                let probe = policy.model.as_ref().and_then(|m| m.probe);
+                tracing::info!(version, train_step, bytes = len, ?probe, "weights loaded");
             }
             Err(e) => {
                 // A damaged or mismatched checkpoint must not stop the car: keep what we had.
@@ -202,7 +202,7 @@ fn receive_weights(
                 tracing::error!(
                     version,
                     bytes = len,
-                    "rejected weights, keeping the previous model: {e}"
+                    "rejected weights, keeping the previous model: {e:#}"
                 );
             }
         }

@@ -3,10 +3,13 @@
 //! tests and data collection (`standalone`).
 
 pub mod config;
+pub mod control_stats;
 pub mod drive_stats;
+pub mod pacing;
 pub mod recorder;
 pub mod service;
 pub mod standalone;
+pub mod trace;
 
 // The wire format and the world must agree on the image; a mismatch must not compile.
 const _: () = assert!(mtanet_ipc::IMAGE_HEIGHT == mtanet_scenes::IMAGE_HEIGHT);

@@ -55,6 +55,9 @@ struct Args {
     /// Steps per recorded sequence.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
     seq_len: u64,
+    /// Service mode: write the car's path and who drove it (CSV) to this file.
+    #[arg(long, conflicts_with = "teacher_only")]
+    trace: Option<PathBuf>,
 }
 
 fn parse_mode(s: &str) -> Result<Mode, String> {
@@ -124,8 +127,16 @@ fn main() -> anyhow::Result<()> {
     let ports = service::Ports::open(&node)?;
     systemd::ready("simulator running");
     tracing::info!(namespace = %ipc.namespace, mode = ?cfg.mode, "simulator service started");
-    let summary = service::run(&node, &ports, &mut world, &mut teacher, &cfg, &shutdown);
+    let mut trace = args
+        .trace
+        .as_deref()
+        .map(|p| mtanet_simulator::trace::Trace::create(p, cfg.trace_every_steps))
+        .transpose()?;
+    let summary = service::run(&node, &ports, &mut world, &mut teacher, &cfg, &shutdown, trace.as_mut());
     systemd::stopping();
+    if let Some(t) = trace {
+        t.finish()?;
+    }
     let summary = summary?;
     tracing::info!(
         steps = summary.steps,

@@ -1,6 +1,6 @@
 //! Records a drive as a dataset `.npz`: `images` float32 `[N,T,H,W]` in [0,1] and `actions`
-//! float32 `[N,T,2]`, where `actions[:, t]` is the wheel velocity measured when frame t was taken
-//! (what moved the world from frame t-1 to t). Sequences are consecutive, non-overlapping windows;
+//! float32 `[N,T,2]`, where `actions[:, t]` is the wheel command applied from frame t-1 to frame t
+//! (what moved the world there; the same convention as the replay chunks). Sequences are consecutive, non-overlapping windows;
 //! a partial window at the end is dropped. Written to a temp file and renamed, so a crash never
 //! leaves a half-written dataset under the final name.
 

@@ -10,18 +10,24 @@ use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::ports::{Loaned, Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
-use mtanet_ipc::{Command, Observation, REPLAY_STEPS, ReplayChunk, names, stamp};
+use mtanet_ipc::{
+    Command, CommandSource, Observation, REPLAY_STEPS, ReplayChunk, TrainerStatus, names, stamp,
+};
 use mtanet_scenes::{Sensors, Teacher, World};
 use serde::{Deserialize, Serialize};
 
 use crate::config::{MissPolicy, Mode, SimulatorConfig};
+use crate::control_stats::{ControlStats, ControlSummary};
 use crate::drive_stats::{DriveStats, LateralError};
+use crate::pacing::{Pace, PaceSummary};
+use crate::trace::Trace;
 
 /// The simulator's iceoryx2 endpoints.
 pub struct Ports {
     pub observations: Sender<Observation>,
     pub commands: Receiver<Command>,
     pub replay: Sender<ReplayChunk>,
+    pub trainer_status: Receiver<TrainerStatus>,
 }
 
 impl Ports {
@@ -30,6 +36,7 @@ impl Ports {
             observations: Sender::open(node, names::OBSERVATION, TopicShape::STEP)?,
             commands: Receiver::open(node, names::COMMAND, TopicShape::STEP)?,
             replay: Sender::open(node, names::REPLAY, TopicShape::REPLAY)?,
+            trainer_status: Receiver::open(node, names::TRAINER_STATUS, TopicShape::STATUS)?,
         })
     }
 }
@@ -42,6 +49,9 @@ pub struct Summary {
     pub commands_received: u64,
     /// Steps where a predictor was connected but its command did not come in time.
     pub missed_commands: u64,
+    /// Real time: steps whose command missed the deadline (the same count as `missed_commands`;
+    /// in lockstep, where nothing has a deadline, 0).
+    pub deadline_misses: u64,
     /// Commands that arrived for another step (late answers to earlier steps), dropped.
     pub stale_commands: u64,
     /// Non-finite commands rejected by the world.
@@ -59,6 +69,10 @@ pub struct Summary {
     pub step_time: LatencySummary,
     pub laps: u32,
     pub lateral_error_m: LateralError,
+    /// Who drove, and how well (per command source).
+    pub control: ControlSummary,
+    /// Lockstep pacing on the trainer's updates.
+    pub pace: PaceSummary,
     pub sim_seconds: f64,
     pub wall_seconds: f64,
 }
@@ -66,7 +80,7 @@ pub struct Summary {
 /// Consecutive missed commands after which the simulator checks for a dead predictor.
 const MISSES_BEFORE_CLEANUP: u32 = 3;
 
-/// Runs until `cfg.max_steps` or a signal.
+/// Runs until `cfg.max_steps` or a signal; `trace` gets the car's path with who drove.
 pub fn run(
     node: &Node<ipc::Service>,
     ports: &Ports,
@@ -74,6 +88,7 @@ pub fn run(
     teacher: &mut Teacher,
     cfg: &SimulatorConfig,
     shutdown: &Shutdown,
+    mut trace: Option<&mut Trace>,
 ) -> anyhow::Result<Summary> {
     let period = world.config().control_period_s;
     let mut watchdog = Watchdog::from_env();
@@ -82,6 +97,10 @@ pub fn run(
     }
     let mut summary = Summary::default();
     let mut drive = DriveStats::default();
+    let mut control = ControlStats::default();
+    let mut pace = Pace::new(cfg.pace_updates_per_1000_steps, cfg.mode == Mode::Lockstep);
+    // Who decided the command in force (it led to the next frame).
+    let mut applied_source = CommandSource::Teacher;
     let (mut round_trip, mut step_time) = (LatencyStats::new(), LatencyStats::new());
     let mut chunk = ChunkBuilder::default();
     let mut last_cmd = [0.0f32; 2];
@@ -101,10 +120,20 @@ pub fn run(
     let mut lost_steps = 0u64;
     let lost_limit = (cfg.reset_after_lost_s / period).round() as u64;
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
+        pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = Instant::now();
         let sensors = world.sense();
         drive.record(&sensors.truth);
-        let obs_stamp = publish_observation(ports, step, episode, world.time_s(), &sensors)?;
+        let applied = world.command().map(|v| v as f32);
+        let lockstep = cfg.mode == Mode::Lockstep;
+        let obs = ObsMeta {
+            step,
+            episode,
+            time_s: world.time_s(),
+            applied,
+            lockstep,
+        };
+        let obs_stamp = publish_observation(ports, &obs, &sensors)?;
         let predictor = ports.commands.publishers() > 0;
         // Without a predictor only look (no wait): one that answered and left still counts.
         let answer = await_command(
@@ -118,21 +147,25 @@ pub fn run(
             shutdown,
             &mut summary.stale_commands,
         )?;
-        let cmd = match answer {
+        let (cmd, source) = match answer {
             Some(c) => {
                 consecutive_misses = 0;
                 if c.step == step {
                     summary.commands_received += 1;
                     round_trip.record_ns(stamp::elapsed_ns(obs_stamp));
                 }
-                c.wheel_velocity
+                let source = CommandSource::from_u32(c.source).unwrap_or(CommandSource::Reactive);
+                (c.wheel_velocity, source)
             }
             None if !predictor => {
                 summary.teacher_steps += 1;
-                teacher.act(&sensors)
+                (teacher.act(&sensors), CommandSource::Teacher)
             }
             None => {
                 summary.missed_commands += 1;
+                if !lockstep {
+                    summary.deadline_misses += 1;
+                }
                 consecutive_misses += 1;
                 if consecutive_misses >= MISSES_BEFORE_CLEANUP {
                     // A predictor killed with SIGKILL still counts as connected until its node is
@@ -147,24 +180,30 @@ pub fn run(
                     }
                     summary.dead_nodes_cleaned += cleaned;
                 }
-                match cfg.on_missed_command {
+                let cmd = match cfg.on_missed_command {
                     MissPolicy::Teacher => teacher.act(&sensors),
                     MissPolicy::Stop => [0.0, 0.0],
                     MissPolicy::Hold => last_cmd,
-                }
+                };
+                (cmd, CommandSource::Teacher)
             }
         };
+        control.record(source, sensors.truth.lateral_m, drive.laps());
+        if let Some(t) = trace.as_deref_mut() {
+            t.record(step, episode, &sensors.truth, source)?;
+        }
+        if cfg.replay {
+            chunk.push(&ports.replay, step, episode, &sensors, applied, applied_source)?;
+        }
         if world.step(cmd) {
             last_cmd = cmd;
+            applied_source = source;
         } else {
             tracing::warn!(
                 step,
                 ?cmd,
                 "rejected a non-finite wheel command; keeping the last good one"
             );
-        }
-        if cfg.replay {
-            chunk.push(&ports.replay, step, episode, &sensors)?;
         }
         lost_steps = if sensors.truth.lateral_m.abs() > cfg.lost_lateral_m {
             lost_steps + 1
@@ -181,6 +220,8 @@ pub fn run(
             world.reset();
             teacher.reset();
             drive.end_episode();
+            control.end_episode();
+            applied_source = CommandSource::Teacher; // the reset's zero command
             chunk.discard(); // a training sequence never spans a reset
             episode += 1;
             lost_steps = 0;
@@ -198,6 +239,8 @@ pub fn run(
             tracing::info!(
                 step,
                 laps = drive.laps(),
+                laps_ai = control.laps_under_active_inference(),
+                driver = applied_source.name(),
                 received = summary.commands_received,
                 missed = summary.missed_commands,
                 round_trip = %round_trip.summary(),
@@ -212,6 +255,8 @@ pub fn run(
     summary.step_time = step_time.summary();
     summary.laps = drive.laps();
     summary.lateral_error_m = drive.lateral();
+    summary.control = control.summary();
+    summary.pace = pace.summary(step);
     summary.sim_seconds = step as f64 * period; // world time restarts with each episode
     summary.wall_seconds = start.elapsed().as_secs_f64();
     if cfg.replay {
@@ -269,23 +314,29 @@ fn linger_for_replay(ports: &Ports, cfg: &SimulatorConfig, watchdog: &mut Watchd
     }
 }
 
-fn publish_observation(
-    ports: &Ports,
+/// What an observation says besides the sensors.
+struct ObsMeta {
     step: u64,
     episode: u32,
     time_s: f64,
-    s: &Sensors,
-) -> anyhow::Result<u64> {
+    /// The command applied during the step that led to this frame.
+    applied: [f32; 2],
+    lockstep: bool,
+}
+
+fn publish_observation(ports: &Ports, m: &ObsMeta, s: &Sensors) -> anyhow::Result<u64> {
     let mut stamp_ns = 0;
     ports
         .observations
         .send_with(|o| {
-            o.step = step;
-            o.sim_time_s = time_s;
+            o.step = m.step;
+            o.sim_time_s = m.time_s;
             o.image = s.image;
             o.wheel_velocity = s.wheel_velocity;
+            o.command = m.applied;
             o.line_sensors = s.line.map(u8::from);
-            o.episode = episode as u8; // wraps: receivers only look for a change
+            o.episode = m.episode as u8; // wraps: receivers only look for a change
+            o.lockstep = u8::from(m.lockstep);
             let t = &s.truth;
             o.truth.x_m = t.x;
             o.truth.y_m = t.y;
@@ -340,13 +391,16 @@ struct ChunkBuilder {
 }
 
 impl ChunkBuilder {
-    /// Adds a step; sends the chunk once it holds `REPLAY_STEPS` steps.
+    /// Adds a step: its frame and the command (and its source) that led to it. Sends the chunk
+    /// once it holds `REPLAY_STEPS` steps.
     fn push(
         &mut self,
         replay: &Sender<ReplayChunk>,
         step: u64,
         episode: u32,
         s: &Sensors,
+        applied: [f32; 2],
+        source: CommandSource,
     ) -> anyhow::Result<()> {
         let sample = match self.sample.as_mut() {
             Some(sample) => sample,
@@ -362,7 +416,8 @@ impl ChunkBuilder {
         let c = sample.payload_mut();
         let i = c.len as usize;
         c.images[i] = s.image;
-        c.actions[i] = s.wheel_velocity;
+        c.actions[i] = applied;
+        c.sources[i] = source as u8;
         c.len += 1;
         if c.len as usize == REPLAY_STEPS {
             c.stamp_ns = stamp::monotonic_ns();

@@ -71,7 +71,8 @@ pub fn run(
         let sensors = world.sense();
         stats.record(&sensors.truth);
         if let Some(rec) = recorder.as_mut() {
-            rec.push(&sensors.image, sensors.wheel_velocity);
+            // The command that led to this frame, as in the replay chunks.
+            rec.push(&sensors.image, world.command().map(|v| v as f32));
         }
         let cmd = teacher.act(&sensors);
         world.step(cmd);

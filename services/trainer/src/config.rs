@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use mtanet_eval::ProbeConfig;
 use mtanet_models::{ModelConfig, TrainConfig};
 use serde::{Deserialize, Serialize};
 
@@ -10,9 +11,15 @@ use serde::{Deserialize, Serialize};
 pub struct TrainerConfig {
     /// Replay buffer capacity in chunks (each REPLAY_STEPS steps); the oldest is dropped beyond.
     pub replay_capacity: usize,
-    /// Training starts once the buffer holds this many sequences (a batch of near-duplicates
+    /// Training starts once the buffer holds this many chunks (a batch of near-duplicates
     /// from the first second of driving would only overfit).
     pub min_sequences: usize,
+    /// Model steps per training window (each `model.frame_skip` control steps), cut from
+    /// consecutive chunks of one episode.
+    pub sequence_steps: usize,
+    /// Run the counterfactual probe every this many updates (0: never; the predictor then
+    /// needs `min_probe = -1` to trust the model).
+    pub probe_every_updates: u64,
     /// Publish the weights to the predictor every this many accepted updates.
     pub publish_every_updates: u64,
     /// Keep the latest checkpoint here (atomic writes) and resume from it at start; none: no disk.
@@ -27,6 +34,8 @@ pub struct TrainerConfig {
     pub model: ModelConfig,
     /// `[trainer.train]`: optimiser and batch settings.
     pub train: TrainConfig,
+    /// `[trainer.probe]`: states, horizon and commands of the counterfactual probe.
+    pub probe: ProbeConfig,
 }
 
 impl Default for TrainerConfig {
@@ -34,6 +43,8 @@ impl Default for TrainerConfig {
         Self {
             replay_capacity: 4096,
             min_sequences: 64,
+            sequence_steps: 12,
+            probe_every_updates: 250,
             publish_every_updates: 50,
             checkpoint_dir: None,
             nice: 10,
@@ -43,11 +54,20 @@ impl Default for TrainerConfig {
                 // Wheel speeds of the line tracer are ~2..14 rad/s around a cruise of 7-8 (teacher
                 // recordings: mean 6.6/7.6, std 1.7/1.0): centre and scale them so the action
                 // MLP starts in its useful range instead of saturating on raw rad/s.
-                action_offset: vec![7.0, 7.0],
-                action_scale: vec![2.5, 2.5],
+                // With exploration the commands spread wider (2..19 rad/s): centre on cruise.
+                action_offset: vec![8.0, 8.0],
+                action_scale: vec![4.0, 4.0],
+                // 0.1 s per model step: a command held for a segment visibly moves the view,
+                // and a 0.4 s plan is 4 imagined steps, not 20.
+                frame_skip: 5,
                 ..ModelConfig::default()
             },
-            train: TrainConfig::default(),
+            train: TrainConfig {
+                // The planner rolls the model out 1 + horizon steps: train it to.
+                imagined_steps: 5,
+                ..TrainConfig::default()
+            },
+            probe: ProbeConfig::default(),
         }
     }
 }

@@ -5,23 +5,28 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use mtanet_ipc::weights_topic::WeightsSender;
-use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_PIXELS, IMAGE_WIDTH, WeightsHeader};
+use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_WIDTH, WeightsHeader};
 use mtanet_models::Trainer;
 use mtanet_models::checkpoint::{CheckpointError, SCHEMA_VERSION};
 use mtanet_models::train::UpdateStats;
 use rand::SeedableRng;
-use rand::seq::IndexedRandom;
 use rand_chacha::ChaCha8Rng;
 use tch::Tensor;
 
 use crate::config::TrainerConfig;
-use crate::replay::{ReplayBuffer, Sequence};
+use crate::probe::Prober;
+use crate::replay::{Batch, ReplayBuffer};
 
 pub struct Learner {
     trainer: Trainer,
     rng: ChaCha8Rng,
     min_sequences: usize,
+    sequence_steps: usize,
     publish_every: u64,
+    /// The counterfactual probe, run every so many updates (none: never).
+    prober: Option<Prober>,
+    /// The latest probe: (training step, rank correlation).
+    pub probe: Option<(u64, f64)>,
     checkpoint: Option<PathBuf>,
     version: u64,
     last_loss: Option<f64>,
@@ -58,7 +63,10 @@ impl Learner {
             trainer,
             rng: ChaCha8Rng::seed_from_u64(cfg.train.seed),
             min_sequences: cfg.min_sequences.max(1),
+            sequence_steps: cfg.sequence_steps.max(2),
             publish_every: cfg.publish_every_updates.max(1),
+            prober: None,
+            probe: None,
             checkpoint,
             version: 0,
             last_loss: None,
@@ -79,28 +87,42 @@ impl Learner {
         self.version
     }
 
+    /// Runs the counterfactual probe with `prober` every its interval of updates.
+    pub fn set_prober(&mut self, prober: Prober) {
+        self.prober = Some(prober);
+    }
+
     pub fn ready(&self, buffer: &ReplayBuffer) -> bool {
         buffer.len() >= self.min_sequences
     }
 
-    /// One update on a random batch; publishes when due. A refused (non-finite) update is logged
-    /// and counted, the weights stay as they were.
+    /// Control steps per model step of the network trained.
+    pub fn frame_skip(&self) -> usize {
+        self.trainer.cfg.frame_skip.max(1) as usize
+    }
+
+    /// One update on a random batch of windows; probes and publishes when due. A refused
+    /// (non-finite) update is logged and counted, the weights stay as they were. `None` also
+    /// when the buffer holds no run of driving long enough for a window yet.
     pub fn train_once(
         &mut self,
         buffer: &ReplayBuffer,
         weights: &WeightsSender,
     ) -> anyhow::Result<Option<UpdateStats>> {
-        let seqs: Vec<&Sequence> = buffer.sequences().collect();
-        let batch = (self.trainer.train_cfg.batch_size.max(1) as usize).min(seqs.len());
-        let picked: Vec<&Sequence> = seqs
-            .choose_multiple(&mut self.rng, batch)
-            .copied()
-            .collect();
-        let (images, actions) = to_tensors(&picked);
+        let b = self.trainer.train_cfg.batch_size.max(1) as usize;
+        let skip = self.frame_skip();
+        let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip) else {
+            return Ok(None);
+        };
+        let (images, actions) = to_tensors(&batch);
         match self.trainer.update(&images, &actions) {
             Ok(stats) => {
                 self.last_loss = Some(stats.loss);
-                if stats.step % self.publish_every == 0 {
+                let probe_due = self.prober.as_ref().is_some_and(|p| p.due(stats.step));
+                if probe_due {
+                    self.run_probe()?;
+                }
+                if probe_due || stats.step % self.publish_every == 0 {
                     self.publish(weights)?;
                 }
                 Ok(Some(stats))
@@ -117,6 +139,34 @@ impl Learner {
         }
     }
 
+    /// The counterfactual probe of the current weights (a few seconds of simulation).
+    fn run_probe(&mut self) -> anyhow::Result<()> {
+        let Some(prober) = self.prober.as_ref() else {
+            return Ok(());
+        };
+        let bytes = self
+            .trainer
+            .checkpoint_bytes(self.last_loss)
+            .context("serialising the checkpoint for the probe")?;
+        let t0 = std::time::Instant::now();
+        match prober.run(&bytes) {
+            Ok(r) => {
+                tracing::info!(
+                    step = self.trainer.step(),
+                    rank_correlation = r.rank_correlation,
+                    top2 = r.top2_agreement,
+                    states = r.states,
+                    seconds = t0.elapsed().as_secs_f64(),
+                    "counterfactual probe"
+                );
+                self.probe = Some((self.trainer.step(), r.rank_correlation));
+            }
+            // The probe judges the model; failing to run it must not stop the learning.
+            Err(e) => tracing::error!("the counterfactual probe failed: {e:#}"),
+        }
+        Ok(())
+    }
+
     /// Sends the current weights to the predictor (and to disk when configured).
     pub fn publish(&mut self, weights: &WeightsSender) -> anyhow::Result<()> {
         let bytes = self
@@ -129,6 +179,8 @@ impl Learner {
             train_step: self.trainer.step(),
             loss: self.last_loss.unwrap_or(f64::NAN) as f32,
             schema: SCHEMA_VERSION,
+            probe_step: self.probe.map_or(0, |p| p.0),
+            probe: self.probe.map_or(f32::NAN, |p| p.1 as f32),
             ..Default::default()
         };
         weights.send(header, &bytes)?;
@@ -166,20 +218,11 @@ impl Learner {
     }
 }
 
-/// `[B, T, H, W]` images and `[B, T, A]` actions; sequences shorter than the longest are cut to
-/// the shortest so the batch is rectangular.
-fn to_tensors(seqs: &[&Sequence]) -> (Tensor, Tensor) {
-    let t = seqs.iter().map(|s| s.images.len()).min().unwrap_or(0);
-    let b = seqs.len();
-    let mut img: Vec<f32> = Vec::with_capacity(b * t * IMAGE_PIXELS);
-    let mut act: Vec<f32> = Vec::with_capacity(b * t * ACTION_DIM);
-    for s in seqs {
-        img.extend(s.images[..t].iter().flatten());
-        act.extend(s.actions[..t].iter().flatten());
-    }
-    let (b, t) = (b as i64, t as i64);
+/// `[B, T, H, W]` images and `[B, T, A]` actions.
+fn to_tensors(b: &Batch) -> (Tensor, Tensor) {
+    let (n, t) = (b.batch as i64, b.steps as i64);
     (
-        Tensor::from_slice(&img).view([b, t, IMAGE_HEIGHT as i64, IMAGE_WIDTH as i64]),
-        Tensor::from_slice(&act).view([b, t, ACTION_DIM as i64]),
+        Tensor::from_slice(&b.images).view([n, t, IMAGE_HEIGHT as i64, IMAGE_WIDTH as i64]),
+        Tensor::from_slice(&b.actions).view([n, t, ACTION_DIM as i64]),
     )
 }

@@ -1,7 +1,9 @@
-//! The trainer process: collects replay chunks from shared memory into a replay buffer and (as
-//! the model work lands) trains MTA-PredNet on it and publishes weights to the predictor.
+//! The trainer process: collects replay chunks from shared memory into a replay buffer, trains
+//! MTA-PredNet on windows of it at the model's frame skip, judges the weights by the
+//! counterfactual probe, and publishes them to the predictor.
 
 pub mod config;
 pub mod learner;
+pub mod probe;
 pub mod replay;
 pub mod service;

@@ -14,15 +14,36 @@ use mtanet_trainer::service;
     about = "Online MTA-PredNet training from shared-memory replay"
 )]
 struct Args {
-    /// Config sections read: [ipc], [trainer].
+    /// Config sections read: [ipc], [trainer]; for the counterfactual probe also
+    /// [simulator.scene] (the track) and [predictor.active_inference] (the planner's cost).
     #[command(flatten)]
     common: CommonArgs,
+    /// Track of the probe's world (overrides [simulator.scene] track, like the simulator's).
+    #[arg(long)]
+    track: Option<std::path::PathBuf>,
 }
 
 fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
     let (cfg, ipc, shutdown): (TrainerConfig, _, _) = args.common.start("trainer")?;
+    let (file, _) = args.common.load()?;
+    let mut scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
+    if let Some(t) = args.track {
+        scene.track = t;
+    }
+    let agent: mtanet_control::AgentConfig = file.section("predictor.active_inference")?;
+    let mut learner = mtanet_trainer::learner::Learner::new(&cfg)?;
+    if cfg.probe_every_updates > 0 {
+        // Fail at start on a bad track, not at the first probe an hour in.
+        mtanet_scenes::World::new(&scene)?;
+        learner.set_prober(mtanet_trainer::probe::Prober {
+            scene,
+            agent,
+            cfg: cfg.probe.clone(),
+            every: cfg.probe_every_updates,
+        });
+    }
     tch::set_num_threads(cfg.torch_threads);
     // The predictor's latency matters more than training speed: yield the CPU to it.
     // SAFETY: setpriority(2) on this process only.
@@ -33,7 +54,7 @@ fn main() -> anyhow::Result<()> {
     let ports = service::Ports::open(&node)?;
     systemd::ready("trainer running");
     tracing::info!(namespace = %ipc.namespace, "trainer service started");
-    let summary = service::run(&ports, &cfg, &shutdown);
+    let summary = service::run_with(&ports, &cfg, learner, &shutdown);
     systemd::stopping();
     let summary = summary?;
     tracing::info!(

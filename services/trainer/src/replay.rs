@@ -1,35 +1,49 @@
-//! The trainer's replay buffer: a ring of training sequences copied out of the shared-memory
-//! chunks (a chunk must be released quickly so the simulator can reuse its memory).
+//! The trainer's replay buffer: chunks copied out of shared memory (a chunk must be released
+//! quickly so the simulator can reuse its memory), joined into training windows at the model's
+//! frame skip. Consecutive chunks of one episode (contiguous steps) form one run of driving; a
+//! window may start anywhere in a run, at any phase of the frame skip.
 
 use std::collections::VecDeque;
 
-use mtanet_ipc::{ACTION_DIM, IMAGE_PIXELS, ReplayChunk};
+use mtanet_ipc::{ACTION_DIM, CommandSource, IMAGE_PIXELS, ReplayChunk};
+use mtanet_models::sequences::{push_window, window_span};
+use rand::Rng;
 
-/// One training sequence.
-#[derive(Clone)]
-pub struct Sequence {
-    pub first_step: u64,
-    pub images: Vec<[f32; IMAGE_PIXELS]>,
-    pub actions: Vec<[f32; ACTION_DIM]>,
+struct Chunk {
+    first_step: u64,
+    episode: u32,
+    images: Vec<[f32; IMAGE_PIXELS]>,
+    actions: Vec<[f32; ACTION_DIM]>,
 }
 
 pub struct ReplayBuffer {
     capacity: usize,
-    sequences: VecDeque<Sequence>,
+    chunks: VecDeque<Chunk>,
     received: u64,
     /// Steps in all chunks received (a chunk's `len`).
     steps_received: u64,
+    /// Steps received per command source (`CommandSource as usize`; unknown values last).
+    steps_by_source: [u64; 6],
     lost: u64,
     next_seq: Option<u64>,
+}
+
+/// One training batch: `[B, T, H, W]` frames and `[B, T, A]` actions, flattened.
+pub struct Batch {
+    pub batch: usize,
+    pub steps: usize,
+    pub images: Vec<f32>,
+    pub actions: Vec<f32>,
 }
 
 impl ReplayBuffer {
     pub fn new(capacity: usize) -> Self {
         Self {
             capacity: capacity.max(1),
-            sequences: VecDeque::new(),
+            chunks: VecDeque::new(),
             received: 0,
             steps_received: 0,
+            steps_by_source: [0; 6],
             lost: 0,
             next_seq: None,
         }
@@ -46,22 +60,27 @@ impl ReplayBuffer {
         self.received += 1;
         self.steps_received += u64::from(c.len);
         let len = (c.len as usize).min(c.images.len());
-        if self.sequences.len() == self.capacity {
-            self.sequences.pop_front();
+        for &s in &c.sources[..len] {
+            self.steps_by_source[(s as usize).min(5)] += 1;
         }
-        self.sequences.push_back(Sequence {
+        if self.chunks.len() == self.capacity {
+            self.chunks.pop_front();
+        }
+        self.chunks.push_back(Chunk {
             first_step: c.first_step,
+            episode: c.episode,
             images: c.images[..len].to_vec(),
             actions: c.actions[..len].to_vec(),
         });
     }
 
+    /// Chunks held.
     pub fn len(&self) -> usize {
-        self.sequences.len()
+        self.chunks.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.sequences.is_empty()
+        self.chunks.is_empty()
     }
 
     pub fn received(&self) -> u64 {
@@ -76,38 +95,127 @@ impl ReplayBuffer {
         self.lost
     }
 
-    pub fn sequences(&self) -> impl Iterator<Item = &Sequence> {
-        self.sequences.iter()
+    /// Share of the steps received that exploration segments drove.
+    pub fn exploration_fraction(&self) -> f64 {
+        let total: u64 = self.steps_by_source.iter().sum();
+        if total == 0 {
+            return 0.0;
+        }
+        self.steps_by_source[CommandSource::Exploration as usize] as f64 / total as f64
+    }
+
+    /// Control steps from chunk `c`, offset `o` on, that continue without a gap or a reset.
+    fn contiguous_from(&self, c: usize, o: usize, need: usize) -> bool {
+        let mut have = self.chunks[c].images.len() - o;
+        let mut i = c;
+        while have < need {
+            let (a, b) = match (self.chunks.get(i), self.chunks.get(i + 1)) {
+                (Some(a), Some(b)) => (a, b),
+                _ => return false,
+            };
+            if b.episode != a.episode || b.first_step != a.first_step + a.images.len() as u64 {
+                return false;
+            }
+            have += b.images.len();
+            i += 1;
+        }
+        true
+    }
+
+    /// Copies `span` consecutive steps from (c, o) into flat slices.
+    fn gather(&self, c: usize, o: usize, span: usize) -> (Vec<[f32; IMAGE_PIXELS]>, Vec<[f32; ACTION_DIM]>) {
+        let (mut imgs, mut acts) = (Vec::with_capacity(span), Vec::with_capacity(span));
+        let (mut i, mut off) = (c, o);
+        while imgs.len() < span {
+            let ch = &self.chunks[i];
+            let take = (ch.images.len() - off).min(span - imgs.len());
+            imgs.extend_from_slice(&ch.images[off..off + take]);
+            acts.extend_from_slice(&ch.actions[off..off + take]);
+            i += 1;
+            off = 0;
+        }
+        (imgs, acts)
+    }
+
+    /// A random batch of `batch` windows of `steps` model steps at `skip`; `None` when the
+    /// buffer holds no run long enough (after a bounded number of tries per window).
+    pub fn sample(&self, rng: &mut impl Rng, batch: usize, steps: usize, skip: usize) -> Option<Batch> {
+        if self.chunks.is_empty() {
+            return None;
+        }
+        let span = window_span(skip, steps);
+        let mut out = Batch {
+            batch,
+            steps,
+            images: Vec::with_capacity(batch * steps * IMAGE_PIXELS),
+            actions: Vec::with_capacity(batch * steps * ACTION_DIM),
+        };
+        for _ in 0..batch {
+            let found = (0..64).find_map(|_| {
+                let c = rng.random_range(0..self.chunks.len());
+                let o = rng.random_range(0..self.chunks[c].images.len().max(1));
+                (self.chunks[c].images.len() > o && self.contiguous_from(c, o, span)).then_some((c, o))
+            });
+            let (c, o) = found?;
+            let (imgs, acts) = self.gather(c, o, span);
+            // The window's first frame comes skip - 1 steps in, after the commands of its action.
+            push_window(&imgs, &acts, skip - 1, skip, steps, &mut out.images, &mut out.actions);
+        }
+        Some(out)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::SeedableRng;
 
-    fn chunk(seq: u64) -> Box<ReplayChunk> {
+    fn chunk(seq: u64, first_step: u64, episode: u32) -> Box<ReplayChunk> {
         let mut c: Box<ReplayChunk> = bytemuck::zeroed_box();
         c.seq = seq;
-        c.len = 3;
-        c.first_step = seq * 20;
-        c.images[1][5] = seq as f32;
+        c.len = 20;
+        c.first_step = first_step;
+        c.episode = episode;
+        for i in 0..20 {
+            let step = (first_step + i as u64) as f32;
+            c.images[i] = [step; IMAGE_PIXELS];
+            c.actions[i] = [step, 0.0];
+            c.sources[i] = if i < 5 { CommandSource::Exploration as u8 } else { 0 };
+        }
         c
     }
 
     #[test]
-    fn counts_losses_and_keeps_capacity() {
+    fn counts_losses_sources_and_keeps_capacity() {
         let mut b = ReplayBuffer::new(2);
         for s in [0, 1, 4] {
-            b.push(&chunk(s));
+            b.push(&chunk(s, s * 20, 0));
         }
-        assert_eq!(b.received(), 3);
-        assert_eq!(b.steps_received(), 9);
-        assert_eq!(b.lost(), 2);
-        assert_eq!(b.len(), 2);
-        let kept: Vec<u64> = b.sequences().map(|s| s.first_step).collect();
-        assert_eq!(kept, vec![20, 80]);
-        let last = b.sequences().last().unwrap();
-        assert_eq!(last.images.len(), 3);
-        assert_eq!(last.images[1][5], 4.0);
+        assert_eq!((b.received(), b.steps_received(), b.lost(), b.len()), (3, 60, 2, 2));
+        assert!((b.exploration_fraction() - 0.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn windows_run_across_chunks_of_one_episode_only() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let mut b = ReplayBuffer::new(16);
+        // Steps 0..60 of episode 0, then a reset: episode 1 restarts at step 60.
+        for (seq, first, ep) in [(0, 0, 0), (1, 20, 0), (2, 40, 0), (3, 60, 1)] {
+            b.push(&chunk(seq, first, ep));
+        }
+        // 4 model steps at skip 5 need 5 - 1 + 3 * 5 + 1 = 20 steps: fits in either episode.
+        let batch = b.sample(&mut rng, 32, 4, 5).unwrap();
+        for w in batch.images.chunks(4 * IMAGE_PIXELS) {
+            let f: Vec<f32> = w.chunks(IMAGE_PIXELS).map(|p| p[0]).collect();
+            assert!(f.windows(2).all(|p| p[1] - p[0] == 5.0), "frames 5 steps apart: {f:?}");
+            let ep = |s: f32| if s < 60.0 { 0 } else { 1 };
+            assert_eq!(ep(f[0] - 4.0), ep(f[3]), "a window never spans a reset: {f:?}");
+        }
+        // The action of a model step is the mean command of the 5 steps before its frame.
+        let (f0, a0) = (batch.images[IMAGE_PIXELS], batch.actions[2]);
+        assert_eq!(a0, f0 - 2.0, "mean of steps f-4..=f");
+        // 12 model steps (60 steps) fit only in episode 0 from its very start: never found in
+        // episode 1, and all windows come from episode 0.
+        assert!(b.sample(&mut rng, 4, 13, 5).is_none(), "65 steps exist nowhere");
     }
 }

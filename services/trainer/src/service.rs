@@ -6,11 +6,11 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
-use mtanet_ipc::ports::{Receiver, TopicShape};
+use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsSender;
-use mtanet_ipc::{ReplayChunk, names};
+use mtanet_ipc::{ReplayChunk, TrainerStatus, names, stamp};
 use serde::{Deserialize, Serialize};
 
 use crate::config::TrainerConfig;
@@ -20,6 +20,7 @@ use crate::replay::ReplayBuffer;
 pub struct Ports {
     pub replay: Receiver<ReplayChunk>,
     pub weights: WeightsSender,
+    pub status: Sender<TrainerStatus>,
 }
 
 impl Ports {
@@ -27,6 +28,7 @@ impl Ports {
         Ok(Self {
             replay: Receiver::open(node, names::REPLAY, TopicShape::REPLAY)?,
             weights: WeightsSender::open(node)?,
+            status: Sender::open(node, names::TRAINER_STATUS, TopicShape::STATUS)?,
         })
     }
 }
@@ -38,7 +40,15 @@ pub struct Summary {
     /// Chunks missing from the sequence numbers (overwritten before they were read).
     pub chunks_lost: u64,
     pub steps_received: u64,
+    /// Share of the steps received that exploration segments drove.
+    pub exploration_fraction: f64,
+    /// Chunks in the replay buffer at the end.
     pub buffered_sequences: usize,
+    /// Updates made by this process (a resumed run's earlier ones not included).
+    pub session_updates: u64,
+    /// The latest counterfactual probe: training step and rank correlation.
+    pub probe_step: Option<u64>,
+    pub probe: Option<f64>,
     /// Accepted training updates (including those of a resumed checkpoint).
     pub updates: u64,
     /// Updates refused by the non-finite guard.
@@ -49,14 +59,39 @@ pub struct Summary {
     pub update_time: LatencySummary,
 }
 
+/// Tells the simulator (pacing) how far training has come.
+fn publish_status(ports: &Ports, learner: &Learner, buffer: &ReplayBuffer, session: u64, training: bool) -> anyhow::Result<()> {
+    ports.status.send_with(|s| {
+        s.updates = learner.updates();
+        s.session_updates = session;
+        s.chunks_received = buffer.received();
+        s.chunks_lost = buffer.lost();
+        s.sequences = buffer.len() as u32;
+        s.training = u32::from(training);
+        s.stamp_ns = stamp::monotonic_ns();
+    })?;
+    Ok(())
+}
+
+/// Runs until a signal. `learner` is built by the caller (with or without a probe).
 pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
+    run_with(ports, cfg, Learner::new(cfg)?, shutdown)
+}
+
+pub fn run_with(
+    ports: &Ports,
+    cfg: &TrainerConfig,
+    mut learner: Learner,
+    shutdown: &Shutdown,
+) -> anyhow::Result<Summary> {
     let waitset = create_waitset()?;
     let replay_guard = waitset.attach_notification(ports.replay.listener())?;
     let mut buffer = ReplayBuffer::new(cfg.replay_capacity);
-    let mut learner = Learner::new(cfg)?;
     if learner.has_trained_weights() {
         learner.publish(&ports.weights)?;
     }
+    let mut session = 0u64;
+    publish_status(ports, &learner, &buffer, session, false)?;
     tracing::info!(
         min_sequences = cfg.min_sequences,
         "model ready; waiting for replay chunks"
@@ -89,8 +124,11 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
         waitset.wait_and_process_once_with_timeout(&mut on_event, timeout)?;
         if training && failure.is_none() {
             let t0 = Instant::now();
-            learner.train_once(&buffer, &ports.weights)?;
-            update_time.record_ns(t0.elapsed().as_nanos() as u64);
+            if learner.train_once(&buffer, &ports.weights)?.is_some() {
+                update_time.record_ns(t0.elapsed().as_nanos() as u64);
+                session += 1;
+            }
+            publish_status(ports, &learner, &buffer, session, true)?;
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
@@ -118,7 +156,11 @@ pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::R
         chunks_received: buffer.received(),
         chunks_lost: buffer.lost(),
         steps_received: buffer.steps_received(),
+        exploration_fraction: buffer.exploration_fraction(),
         buffered_sequences: buffer.len(),
+        session_updates: session,
+        probe_step: learner.probe.map(|p| p.0),
+        probe: learner.probe.map(|p| p.1),
         updates: learner.updates(),
         updates_refused: learner.refused,
         last_loss: learner.last_loss(),

@@ -42,6 +42,7 @@ pub fn drive(
             &mut teacher,
             &cfg,
             &Shutdown::manual(),
+            None,
         )
         .unwrap();
         (summary, world.truth())

@@ -1,0 +1,474 @@
+//! The agent: who drives, step by step. The reactive rule (with exploration) drives until the
+//! world model is trusted; then active inference plans through it; if the car loses the line
+//! for too long the reactive rule takes over as a fallback until the line is back.
+//!
+//! Timing. The model steps every `frame_skip` control steps (a *segment*); its action is the
+//! mean command applied over the segment, which is exactly the held command when the planner
+//! drives. At the first step of segment k the agent observes the frame, takes the plan made for
+//! segment k (submitted at the start of segment k - 1) and submits the plan for segment k + 1,
+//! starting from the model state rolled forward through the command of segment k (already sent).
+//! So planning has a whole segment of wall time and no step waits for it in real time.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::cost::{Cost, CostConfig};
+use crate::drive::{Drive, Wheels, mean_wheels};
+use crate::planner::{Outcome, PlannerConfig};
+use crate::preference::{FrameShape, PreferenceLearner};
+use crate::reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
+use crate::worker::{PlanJob, PlanService};
+
+/// Who decided a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Driver {
+    Reactive,
+    /// A random exploration segment while the reactive rule drives.
+    Exploration,
+    ActiveInference,
+    /// The reactive rule after the line was lost under active inference.
+    Fallback,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AgentConfig {
+    /// Drive by active inference once the model is trusted (otherwise only the reactive rule).
+    pub enabled: bool,
+    /// Trust the model once its next-frame error is below `trust_ratio` x copy-last...
+    pub trust_ratio: f64,
+    /// ...after this many model steps since its weights were loaded...
+    pub trust_after_steps: u64,
+    /// ...and its counterfactual probe (rank correlation) is at least this (-1: not needed).
+    pub min_probe: f64,
+    /// Stop trusting it when its error rises above `distrust_ratio` x copy-last.
+    pub distrust_ratio: f64,
+    /// Under active inference, hand over to the reactive fallback when no line sensor has seen the
+    /// line for this long, seconds...
+    pub fallback_after_s: f32,
+    /// ...and take over again once the middle sensor alone has seen it this long.
+    pub resume_after_s: f32,
+    /// Centred frames needed before the preference is used, and the newest kept.
+    pub preference_frames: usize,
+    pub preference_capacity: usize,
+    /// Seconds only the middle line sensor must have been on before a frame counts as centred.
+    pub preference_steady_s: f32,
+    /// Real time: how long the first step of a segment waits for its plan before it counts as
+    /// late (the previous plan's next segment is used). Lockstep waits up to `lockstep_wait_ms`.
+    pub plan_wait_ms: f64,
+    pub lockstep_wait_ms: f64,
+    pub cost: CostConfig,
+    pub planner: PlannerConfig,
+}
+
+impl Default for AgentConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            trust_ratio: 0.7,
+            trust_after_steps: 25,
+            min_probe: 0.3,
+            distrust_ratio: 1.0,
+            fallback_after_s: 0.5,
+            resume_after_s: 0.5,
+            preference_frames: 50,
+            preference_capacity: 2000,
+            preference_steady_s: 0.0,
+            plan_wait_ms: 5.0,
+            lockstep_wait_ms: 2000.0,
+            cost: CostConfig::default(),
+            planner: PlannerConfig::default(),
+        }
+    }
+}
+
+/// One control step's input.
+#[derive(Debug, Clone, Copy)]
+pub struct Tick<'a> {
+    pub episode: u32,
+    pub frame: &'a [f32],
+    pub line: [bool; 3],
+    /// The command applied during the step that led to this frame.
+    pub applied: Wheels,
+    /// The simulator waits for every command (no deadline to keep).
+    pub lockstep: bool,
+}
+
+/// How far the world model can be trusted.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Health {
+    /// Recent next-frame error over the copy-last-frame error.
+    pub model_over_copy: Option<f64>,
+    /// Model steps since its weights were loaded.
+    pub model_steps: u64,
+    /// Counterfactual probe of the weights in use (rank correlation).
+    pub probe: Option<f64>,
+}
+
+impl Health {
+    /// For a model that is the world itself.
+    pub const PERFECT: Health = Health {
+        model_over_copy: Some(0.0),
+        model_steps: u64::MAX,
+        probe: Some(1.0),
+    };
+}
+
+/// The world model as the agent uses it.
+pub trait AgentModel {
+    type Snapshot;
+    /// Control steps per model step; `None` while there is no model.
+    fn frame_skip(&self) -> Option<usize>;
+    /// One model step with the frame seen and the segment's mean command.
+    fn observe(&mut self, frame: &[f32], action: Wheels) -> anyhow::Result<()>;
+    /// A new episode: forget the past.
+    fn reset(&mut self);
+    /// The state after the latest observation, for a plan to start from.
+    fn snapshot(&mut self) -> anyhow::Result<Self::Snapshot>;
+    fn health(&self) -> Health;
+}
+
+/// No world model yet (the predictor before the first weights): the agent only drives by rule.
+pub struct Blind;
+
+impl AgentModel for Blind {
+    type Snapshot = ();
+    fn frame_skip(&self) -> Option<usize> {
+        None
+    }
+    fn observe(&mut self, _: &[f32], _: Wheels) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn reset(&mut self) {}
+    fn snapshot(&mut self) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn health(&self) -> Health {
+        Health::default()
+    }
+}
+
+/// Plans nothing (goes with [`Blind`]).
+pub struct NoPlans;
+
+impl PlanService<()> for NoPlans {
+    fn submit(&mut self, _: PlanJob<()>) -> anyhow::Result<()> {
+        anyhow::bail!("no world model to plan with")
+    }
+    fn wait(&mut self, _: Duration) -> Option<crate::worker::PlanDone> {
+        None
+    }
+    fn idle(&self) -> bool {
+        true
+    }
+}
+
+/// What the agent decided for one step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decision {
+    pub wheels: Wheels,
+    pub driver: Driver,
+    /// The plan taken up at this step, if any (with its compute time).
+    pub plan: Option<(Outcome, Duration)>,
+}
+
+/// Counters for reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct AgentStats {
+    pub reactive_steps: u64,
+    pub exploration_steps: u64,
+    pub active_inference_steps: u64,
+    pub fallback_steps: u64,
+    /// Switches to active inference, and back to the reactive rule because trust was lost.
+    pub switches_to_active_inference: u64,
+    pub switches_to_reactive: u64,
+    /// Times the line was lost under active inference and the fallback took over.
+    pub fallbacks: u64,
+    pub plans: u64,
+    /// Segments whose plan was not ready in time (the previous plan's next segment drove).
+    pub late_plans: u64,
+    pub plan_errors: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    Reactive,
+    ActiveInference,
+    Fallback,
+}
+
+pub struct Agent {
+    cfg: AgentConfig,
+    control_period_s: f32,
+    reactive: Reactive,
+    explorer: Explorer,
+    preference: PreferenceLearner,
+    cost: Option<Cost>,
+    cost_age: u64,
+    mode: Mode,
+    episode: Option<u32>,
+    /// Commands applied since the last model step.
+    applied: Vec<Wheels>,
+    ticks_in_segment: usize,
+    segment: u64,
+    committed: Wheels,
+    /// The rest of the latest plan, for segments whose own plan is late.
+    spare: VecDeque<Drive>,
+    lost_ticks: u32,
+    centred_ticks: u32,
+    pub stats: AgentStats,
+}
+
+impl Agent {
+    pub fn new(
+        cfg: &AgentConfig,
+        reactive: &ReactiveConfig,
+        exploration: &ExplorationConfig,
+        shape: FrameShape,
+        control_period_s: f32,
+    ) -> Self {
+        Self {
+            cfg: cfg.clone(),
+            control_period_s,
+            reactive: Reactive::new(reactive),
+            explorer: Explorer::new(exploration, control_period_s),
+            preference: PreferenceLearner::new(
+                shape,
+                cfg.preference_capacity,
+                (cfg.preference_steady_s / control_period_s).round() as u32,
+            ),
+            cost: None,
+            cost_age: 0,
+            mode: Mode::Reactive,
+            episode: None,
+            applied: Vec::new(),
+            ticks_in_segment: 0,
+            segment: 0,
+            committed: [0.0; 2],
+            spare: VecDeque::new(),
+            lost_ticks: 0,
+            centred_ticks: 0,
+            stats: AgentStats::default(),
+        }
+    }
+
+    /// The current cost (the preference learnt so far), if any.
+    pub fn cost(&self) -> Option<&Cost> {
+        self.cost.as_ref()
+    }
+
+    pub fn driving_by_active_inference(&self) -> bool {
+        self.mode == Mode::ActiveInference
+    }
+
+    fn ticks(&self, seconds: f32) -> u32 {
+        (seconds / self.control_period_s).round().max(1.0) as u32
+    }
+
+    /// Decides the command for this control step.
+    pub fn tick<M, P>(&mut self, t: &Tick, model: &mut M, plans: &mut P) -> anyhow::Result<Decision>
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
+        if self.episode != Some(t.episode) {
+            if self.episode.is_some() {
+                self.new_episode(model, plans);
+            }
+            self.episode = Some(t.episode);
+        }
+        self.applied.push(t.applied);
+        self.preference.observe(t.frame, t.line);
+        self.lost_ticks = if t.line == [false; 3] { self.lost_ticks + 1 } else { 0 };
+        self.centred_ticks = if t.line == [false, true, false] { self.centred_ticks + 1 } else { 0 };
+
+        let skip = model.frame_skip();
+        let model_tick = skip.is_some_and(|s| self.ticks_in_segment == 0 || self.ticks_in_segment >= s);
+        if let Some(s) = skip
+            && model_tick
+        {
+            // The first frame of an episode follows the reset's zero command.
+            let action = mean_wheels(&self.applied);
+            self.applied.clear();
+            model.observe(t.frame, action)?;
+            self.ticks_in_segment = 0;
+            self.segment += 1;
+            self.refresh_cost();
+            let _ = s;
+        }
+        if skip.is_some() {
+            self.ticks_in_segment += 1;
+        } else {
+            self.applied.clear();
+        }
+
+        // Losing the line under active inference hands over to the fallback at once.
+        if self.mode == Mode::ActiveInference && self.lost_ticks >= self.ticks(self.cfg.fallback_after_s) {
+            tracing::warn!(segment = self.segment, "line lost under active inference: the reactive fallback drives");
+            self.mode = Mode::Fallback;
+            self.stats.fallbacks += 1;
+            self.spare.clear();
+        }
+        let mut plan = None;
+        if model_tick {
+            let health = model.health();
+            match self.mode {
+                Mode::ActiveInference if !self.still_trusted(&health) => {
+                    tracing::warn!(?health, "world model no longer trusted: the reactive rule drives");
+                    self.mode = Mode::Reactive;
+                    self.stats.switches_to_reactive += 1;
+                    self.spare.clear();
+                }
+                Mode::ActiveInference => plan = self.take_plan(t, plans),
+                Mode::Reactive | Mode::Fallback => {
+                    let may_resume = self.mode == Mode::Reactive
+                        || self.centred_ticks >= self.ticks(self.cfg.resume_after_s);
+                    if may_resume && self.cost.is_some() && self.trusted(&health) {
+                        if !plans.idle() {
+                            // A plan still out from before the fallback: its segment is past.
+                            let wait = self.cfg.lockstep_wait_ms / 1000.0;
+                            let _ = plans.wait(Duration::from_secs_f64(wait));
+                        }
+                        // Hold the rule's command for this segment, so the plan's start is exact.
+                        self.committed = self.reactive.act(t.line);
+                        tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
+                        self.mode = Mode::ActiveInference;
+                        self.stats.switches_to_active_inference += 1;
+                        self.spare.clear();
+                        self.submit(model, plans, Some(Drive::from_wheels(self.committed)))?;
+                        return Ok(self.decided(self.committed, Driver::ActiveInference, None));
+                    }
+                }
+            }
+            if self.mode == Mode::ActiveInference {
+                self.submit(model, plans, None)?;
+            }
+        }
+        Ok(match self.mode {
+            Mode::ActiveInference => self.decided(self.committed, Driver::ActiveInference, plan),
+            Mode::Fallback => {
+                let w = self.reactive.act(t.line);
+                self.decided(w, Driver::Fallback, None)
+            }
+            Mode::Reactive => {
+                let (w, exploring) = self.explorer.act(self.reactive.act(t.line));
+                let d = if exploring { Driver::Exploration } else { Driver::Reactive };
+                self.decided(w, d, None)
+            }
+        })
+    }
+
+    fn decided(&mut self, wheels: Wheels, driver: Driver, plan: Option<(Outcome, Duration)>) -> Decision {
+        let s = &mut self.stats;
+        match driver {
+            Driver::Reactive => s.reactive_steps += 1,
+            Driver::Exploration => s.exploration_steps += 1,
+            Driver::ActiveInference => s.active_inference_steps += 1,
+            Driver::Fallback => s.fallback_steps += 1,
+        }
+        Decision { wheels, driver, plan }
+    }
+
+    fn trusted(&self, h: &Health) -> bool {
+        self.cfg.enabled
+            && h.model_steps >= self.cfg.trust_after_steps
+            && h.model_over_copy.is_some_and(|r| r <= self.cfg.trust_ratio)
+            && (self.cfg.min_probe <= -1.0 || h.probe.is_some_and(|p| p >= self.cfg.min_probe))
+    }
+
+    fn still_trusted(&self, h: &Health) -> bool {
+        self.cfg.enabled
+            && h.model_over_copy.is_none_or(|r| r <= self.cfg.distrust_ratio)
+            && (self.cfg.min_probe <= -1.0 || h.probe.is_none_or(|p| p >= self.cfg.min_probe))
+    }
+
+    /// The plan for the segment starting now: the one submitted a segment ago, or, if it is late
+    /// or failed, the rest of the previous plan.
+    fn take_plan<P, S>(&mut self, t: &Tick, plans: &mut P) -> Option<(Outcome, Duration)>
+    where
+        P: PlanService<S>,
+    {
+        let wait_ms = if t.lockstep { self.cfg.lockstep_wait_ms } else { self.cfg.plan_wait_ms };
+        let wanted = self.segment - 1;
+        let mut fresh = None;
+        if let Some(done) = plans.wait(Duration::from_secs_f64(wait_ms.max(0.0) / 1000.0)) {
+            match done.outcome {
+                Ok(o) if done.segment == wanted => fresh = Some((o, done.compute)),
+                Ok(_) => {} // a late plan for a segment already past
+                Err(e) => {
+                    self.stats.plan_errors += 1;
+                    tracing::error!("planning failed: {e:#}");
+                }
+            }
+        }
+        match fresh {
+            Some((o, compute)) => {
+                self.stats.plans += 1;
+                self.committed = o.plan[0].wheels();
+                self.spare = o.plan[1..].iter().copied().collect();
+                Some((o, compute))
+            }
+            None => {
+                self.stats.late_plans += 1;
+                if let Some(d) = self.spare.pop_front() {
+                    self.committed = d.wheels();
+                }
+                None
+            }
+        }
+    }
+
+    /// Submits the plan for the segment after this one, if the planner is free.
+    fn submit<M, P>(&mut self, model: &mut M, plans: &mut P, restart: Option<Drive>) -> anyhow::Result<()>
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
+        let Some(cost) = self.cost.clone() else {
+            return Ok(());
+        };
+        if !plans.idle() {
+            return Ok(()); // still busy with a late plan: this segment goes without
+        }
+        plans.submit(PlanJob {
+            segment: self.segment,
+            start: model.snapshot()?,
+            committed: self.committed,
+            cost,
+            restart,
+        })
+    }
+
+    fn refresh_cost(&mut self) {
+        // The preference changes slowly: re-learn it every 50 model steps, or until first ready.
+        self.cost_age += 1;
+        if self.cost.is_none() || self.cost_age >= 50 {
+            if let Some(p) = self.preference.preferred(self.cfg.preference_frames) {
+                self.cost = Some(Cost::new(p, self.cfg.cost.clone()));
+                self.cost_age = 0;
+            }
+        }
+    }
+
+    fn new_episode<M, P>(&mut self, model: &mut M, plans: &mut P)
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
+        model.reset();
+        self.reactive.reset();
+        self.applied.clear();
+        self.ticks_in_segment = 0;
+        self.spare.clear();
+        if !plans.idle() {
+            let _ = plans.wait(Duration::from_secs_f64(self.cfg.lockstep_wait_ms / 1000.0));
+        }
+        if self.mode == Mode::ActiveInference {
+            // Start planning afresh from the first frame of the new episode.
+            self.mode = Mode::Fallback;
+        }
+    }
+}

@@ -1,0 +1,198 @@
+//! Drives an agent around a track in-process (no IPC): the same loop as the simulator service
+//! (sense, decide, apply for one control period; a car lost for `reset_after_lost_s` is put back
+//! as a new episode), with lap and lateral-error bookkeeping per driver.
+
+use std::time::Instant;
+
+use hdrhistogram::Histogram;
+use mtanet_control::{Agent, AgentModel, AgentStats, Driver, PlanService, Tick};
+use mtanet_scenes::World;
+use serde::{Deserialize, Serialize};
+
+use crate::oracle::SeesWorld;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DriveConfig {
+    /// Stop after this many control steps...
+    pub max_steps: u64,
+    /// ...or once this many laps were completed under active inference (0: no such stop).
+    pub stop_after_ai_laps: u32,
+    /// Put the car back at the start after this long more than `lost_lateral_m` off the line.
+    pub reset_after_lost_s: f64,
+    pub lost_lateral_m: f64,
+    /// Keep every n-th step's position in the trace (0: no trace).
+    pub trace_every: u64,
+}
+
+impl Default for DriveConfig {
+    fn default() -> Self {
+        Self {
+            max_steps: 3000,
+            stop_after_ai_laps: 0,
+            reset_after_lost_s: 3.0,
+            lost_lateral_m: 0.1,
+            trace_every: 5,
+        }
+    }
+}
+
+/// Percentiles in milliseconds.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]
+pub struct Millis {
+    pub count: u64,
+    pub p50: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl Millis {
+    pub fn of(h: &Histogram<u64>) -> Self {
+        let ms = |us: u64| us as f64 / 1000.0;
+        Self {
+            count: h.len(),
+            p50: ms(h.value_at_quantile(0.5)),
+            p99: ms(h.value_at_quantile(0.99)),
+            max: ms(h.max()),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct TracePoint {
+    pub step: u64,
+    pub x: f32,
+    pub y: f32,
+    pub driver: Driver,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct DriveReport {
+    pub steps: u64,
+    pub sim_seconds: f64,
+    /// Laps completed, and those driven from start to end by active inference.
+    pub laps: u32,
+    pub laps_under_active_inference: u32,
+    /// Times the car was lost and put back (new episodes).
+    pub lost_events: u32,
+    /// Mean |lateral error| in metres over the steps each driver drove.
+    pub lateral_reactive_m: Option<f64>,
+    pub lateral_active_inference_m: Option<f64>,
+    pub agent: AgentStats,
+    /// Wall time of the plans taken up.
+    pub plan_ms: Millis,
+    pub wall_seconds: f64,
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub trace: Vec<TracePoint>,
+}
+
+#[derive(Default)]
+struct Lateral {
+    sum: f64,
+    n: u64,
+}
+
+impl Lateral {
+    fn mean(&self) -> Option<f64> {
+        (self.n > 0).then(|| self.sum / self.n as f64)
+    }
+}
+
+/// Drives until `cfg.max_steps` or the lap goal.
+pub fn drive<M, P>(
+    world: &mut World,
+    agent: &mut Agent,
+    model: &mut M,
+    plans: &mut P,
+    cfg: &DriveConfig,
+) -> anyhow::Result<DriveReport>
+where
+    M: AgentModel + SeesWorld,
+    P: PlanService<M::Snapshot>,
+{
+    let period = world.config().control_period_s;
+    let lost_limit = (cfg.reset_after_lost_s / period).round() as u64;
+    let wall = Instant::now();
+    let mut report = DriveReport::default();
+    let mut plan_us = Histogram::<u64>::new(3)?;
+    let (mut lat_reactive, mut lat_ai) = (Lateral::default(), Lateral::default());
+    let (mut episode, mut lost_steps, mut laps_before) = (0u32, 0u64, 0u32);
+    // Laps count under active inference only if it drove every step since the last lap.
+    let mut lap_all_ai = false;
+    let mut last_laps = 0u32;
+    for step in 0..cfg.max_steps {
+        let s = world.sense();
+        model.sees(world);
+        let applied = world.command().map(|v| v as f32);
+        let tick = Tick {
+            episode,
+            frame: &s.image,
+            line: s.line,
+            applied,
+            lockstep: true,
+        };
+        let d = agent.tick(&tick, model, plans)?;
+        if let Some((_, compute)) = &d.plan {
+            plan_us.record(compute.as_micros() as u64)?;
+        }
+        let ai = d.driver == Driver::ActiveInference;
+        let lat = s.truth.lateral_m.abs();
+        if ai {
+            lat_ai.sum += lat;
+            lat_ai.n += 1;
+        } else {
+            lat_reactive.sum += lat;
+            lat_reactive.n += 1;
+            lap_all_ai = false;
+        }
+        if cfg.trace_every > 0 && step % cfg.trace_every == 0 {
+            report.trace.push(TracePoint {
+                step,
+                x: s.truth.x as f32,
+                y: s.truth.y as f32,
+                driver: d.driver,
+            });
+        }
+        if std::env::var_os("MTANET_DRIVE_DEBUG").is_some() {
+            eprintln!(
+                "{step} {:?} lat {:+.4} line {:?} wheels {:?} s {:.3}",
+                d.driver, s.truth.lateral_m, s.line, d.wheels, s.truth.track_s
+            );
+        }
+        world.step(d.wheels);
+        let laps = laps_before + world.truth().laps;
+        if laps > last_laps {
+            if lap_all_ai {
+                report.laps_under_active_inference += laps - last_laps;
+            }
+            last_laps = laps;
+            lap_all_ai = true;
+        }
+        report.steps = step + 1;
+        lost_steps = if world.truth().lateral_m.abs() > cfg.lost_lateral_m {
+            lost_steps + 1
+        } else {
+            0
+        };
+        if lost_limit > 0 && lost_steps >= lost_limit {
+            tracing::warn!(step, episode, "car lost: back to the start");
+            laps_before = laps;
+            world.reset();
+            episode += 1;
+            lost_steps = 0;
+            report.lost_events += 1;
+            lap_all_ai = false;
+        }
+        if cfg.stop_after_ai_laps > 0 && report.laps_under_active_inference >= cfg.stop_after_ai_laps {
+            break;
+        }
+    }
+    report.laps = last_laps;
+    report.sim_seconds = report.steps as f64 * period;
+    report.lateral_reactive_m = lat_reactive.mean();
+    report.lateral_active_inference_m = lat_ai.mean();
+    report.agent = agent.stats;
+    report.plan_ms = Millis::of(&plan_us);
+    report.wall_seconds = wall.elapsed().as_secs_f64();
+    Ok(report)
+}

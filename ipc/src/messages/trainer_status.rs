@@ -1,0 +1,23 @@
+use bytemuck::Zeroable;
+use iceoryx2::prelude::ZeroCopySend;
+
+/// The trainer's progress, after every update (and when it starts): the lockstep simulator
+/// paces itself on `updates` so that learning per simulated second does not depend on the CPU.
+#[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
+#[type_name("mtanet::TrainerStatus/v1")]
+#[repr(C)]
+pub struct TrainerStatus {
+    /// `CLOCK_MONOTONIC` ns when published.
+    pub stamp_ns: u64,
+    /// Training updates done (a resumed trainer counts from its checkpoint).
+    pub updates: u64,
+    /// Updates done by this trainer process (what pacing counts).
+    pub session_updates: u64,
+    /// Replay chunks received and lost (sequence gaps) so far.
+    pub chunks_received: u64,
+    pub chunks_lost: u64,
+    /// Sequences in the replay buffer.
+    pub sequences: u32,
+    /// 1 once the buffer holds enough to train.
+    pub training: u32,
+}

@@ -1,0 +1,246 @@
+//! MTA-PredNet as a running agent's world model: built from checkpoint bytes, stepped once per
+//! model step with the frame seen and the segment's mean command, and judged against the
+//! copy-last-frame baseline so the agent trusts it only once it predicts better than "nothing
+//! moves". [`Imagined`] is the same network rolling candidate plans out for the planner (a copy
+//! of its own, so planning can run on another thread).
+
+use mtanet_control::{AgentModel, Drive, Health, Imagination, Wheels};
+use tch::{Kind, Tensor, nn::VarStore};
+
+use crate::checkpoint::{self, CheckpointError};
+use crate::{ModelConfig, MtaPredNet, State};
+
+/// Exponential moving average.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Ema {
+    value: Option<f64>,
+}
+
+impl Ema {
+    const ALPHA: f64 = 0.02; // ~50 model steps of memory
+
+    pub fn push(&mut self, x: f64) {
+        self.value = Some(match self.value {
+            Some(v) => v + Self::ALPHA * (x - v),
+            None => x,
+        });
+    }
+
+    pub fn get(&self) -> Option<f64> {
+        self.value
+    }
+}
+
+pub struct LiveModel {
+    vs: VarStore,
+    model: MtaPredNet,
+    state: State,
+    last_frame: Option<Tensor>,
+    /// Version of the weights (from the weights topic header).
+    pub version: u64,
+    /// Counterfactual probe of these weights, when their publisher measured it.
+    pub probe: Option<f64>,
+    /// Next-frame MSE of the model, and of copying the last frame, over recent model steps.
+    pub model_mse: Ema,
+    pub copy_mse: Ema,
+    /// Model steps since the network was (re)built.
+    pub steps: u64,
+    /// The next prediction starts from an empty state and is not a fair sample of the model.
+    fresh: bool,
+}
+
+fn frame_tensor(cfg: &ModelConfig, frame: &[f32]) -> Tensor {
+    Tensor::from_slice(frame).view([1, 1, cfg.image_height, cfg.image_width])
+}
+
+impl LiveModel {
+    /// Decodes and checks a checkpoint; nothing of a bad one is used.
+    pub fn from_bytes(bytes: &[u8], version: u64) -> Result<Self, CheckpointError> {
+        let (vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        let state = model.zero_state(1);
+        Ok(Self {
+            vs,
+            model,
+            state,
+            last_frame: None,
+            version,
+            probe: None,
+            model_mse: Ema::default(),
+            copy_mse: Ema::default(),
+            steps: 0,
+            fresh: true,
+        })
+    }
+
+    /// New weights: for the same network copied in place (the recurrent state and statistics
+    /// carry on); a different network is rebuilt from scratch.
+    pub fn update(&mut self, bytes: &[u8], version: u64) -> Result<(), CheckpointError> {
+        let ck = checkpoint::from_bytes(bytes)?;
+        if ck.config == *self.model.config() {
+            ck.apply(&mut self.vs, &ck.config)?;
+            self.version = version;
+        } else {
+            *self = Self::from_bytes(bytes, version)?;
+        }
+        Ok(())
+    }
+
+    pub fn model(&self) -> &MtaPredNet {
+        &self.model
+    }
+
+    pub fn config(&self) -> &ModelConfig {
+        self.model.config()
+    }
+
+    /// The state after the latest observation.
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// One model step with `frame` and the mean command that led to it; returns the squared
+    /// error of this frame's prediction (made before seeing it).
+    pub fn observe_frame(&mut self, frame: &[f32], action: Wheels) -> Result<f64, crate::ModelError> {
+        let _guard = tch::no_grad_guard();
+        let frame = frame_tensor(self.model.config(), frame);
+        let action = Tensor::from_slice(&action).view([1, 2]);
+        let (state, out) = self.model.f_step(&self.state, &frame, &action)?;
+        self.state = state;
+        let mse = (&out.prediction - &frame).square().mean(Kind::Float).double_value(&[]);
+        // t = 0 of a fresh state predicts from nothing: not a fair sample of the model.
+        if !self.fresh {
+            self.model_mse.push(mse);
+        }
+        self.fresh = false;
+        if let Some(last) = &self.last_frame {
+            self.copy_mse
+                .push((last - &frame).square().mean(Kind::Float).double_value(&[]));
+        }
+        self.last_frame = Some(frame);
+        self.steps += 1;
+        Ok(mse)
+    }
+
+    /// A new episode: forget the recurrent state and the last frame.
+    pub fn reset_state(&mut self) {
+        self.state = self.model.zero_state(1);
+        self.last_frame = None;
+        self.fresh = true;
+    }
+
+    /// Recent model error over copy-last error.
+    pub fn error_ratio(&self) -> Option<f64> {
+        match (self.model_mse.get(), self.copy_mse.get()) {
+            (Some(m), Some(c)) if c > 0.0 => Some(m / c),
+            _ => None,
+        }
+    }
+}
+
+impl AgentModel for LiveModel {
+    type Snapshot = State;
+
+    fn frame_skip(&self) -> Option<usize> {
+        Some(self.model.config().frame_skip.max(1) as usize)
+    }
+
+    fn observe(&mut self, frame: &[f32], action: Wheels) -> anyhow::Result<()> {
+        self.observe_frame(frame, action)?;
+        Ok(())
+    }
+
+    fn reset(&mut self) {
+        self.reset_state();
+    }
+
+    fn snapshot(&mut self) -> anyhow::Result<State> {
+        // A copy, not a handle: it may go to the planner's thread.
+        Ok(self.state.deep_copy())
+    }
+
+    fn health(&self) -> Health {
+        Health {
+            model_over_copy: self.error_ratio(),
+            model_steps: self.steps,
+            probe: self.probe,
+        }
+    }
+}
+
+/// The network rolling plans out: each segment is one imagined model step under the held
+/// command, the prediction taken as the next input. All candidates go in one batch.
+pub struct Imagined {
+    vs: VarStore,
+    model: MtaPredNet,
+    start: Option<State>,
+}
+
+impl Imagined {
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, CheckpointError> {
+        let (vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        Ok(Self {
+            vs,
+            model,
+            start: None,
+        })
+    }
+
+    /// New weights (in place for the same network).
+    pub fn update(&mut self, bytes: &[u8]) -> Result<(), CheckpointError> {
+        let ck = checkpoint::from_bytes(bytes)?;
+        if ck.config == *self.model.config() {
+            ck.apply(&mut self.vs, &ck.config)?;
+        } else {
+            *self = Self::from_bytes(bytes)?;
+        }
+        Ok(())
+    }
+
+    pub fn model(&self) -> &MtaPredNet {
+        &self.model
+    }
+
+    /// Plans start from `from` itself (no committed segment to roll through).
+    pub fn start_here(&mut self, from: State) {
+        self.start = Some(from);
+    }
+}
+
+impl Imagination for Imagined {
+    type Start = State;
+
+    fn start(&mut self, from: State, committed: Wheels) -> anyhow::Result<()> {
+        let _guard = tch::no_grad_guard();
+        let a = Tensor::from_slice(&committed).view([1, 2]);
+        let (state, _) = self.model.f_imagine_step(&from, &a)?;
+        self.start = Some(state);
+        Ok(())
+    }
+
+    fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
+        let _guard = tch::no_grad_guard();
+        let start = self
+            .start
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("imagine before start"))?;
+        let (k, h) = (plans.len() as i64, plans.first().map_or(0, Vec::len) as i64);
+        anyhow::ensure!(
+            plans.iter().all(|p| p.len() as i64 == h),
+            "plans of different lengths"
+        );
+        let flat: Vec<f32> = plans.iter().flatten().flat_map(|d| d.wheels()).collect();
+        let actions = Tensor::from_slice(&flat).view([k, h, 2]);
+        let mut state = if start.batch() == k { start.shallow_clone() } else { start.expand(k) };
+        let mut predictions = Vec::with_capacity(h as usize);
+        for s in 0..h {
+            let (next, pred) = self.model.f_imagine_step(&state, &actions.select(1, s))?;
+            predictions.push(pred);
+            state = next;
+        }
+        // [K, H, 1, rows, cols] -> one row of H frames per plan.
+        let all = Tensor::stack(&predictions, 1).contiguous().view([k, -1]);
+        let values = Vec::<f32>::try_from(all.flatten(0, -1))?;
+        let per = values.len() / k.max(1) as usize;
+        Ok(values.chunks(per.max(1)).map(<[f32]>::to_vec).collect())
+    }
+}
