@@ -44,8 +44,11 @@ pub struct AgentConfig {
     pub trust_after_steps: u64,
     /// ...and its counterfactual probe (rank correlation) is at least this (-1: not needed).
     pub min_probe: f64,
-    /// Stop trusting it when its error rises above `distrust_ratio` x copy-last.
+    /// Stop trusting it when its error has stayed above `distrust_ratio` x copy-last for
+    /// `distrust_after_steps` model steps (the ratio swings when the car slows down: copying
+    /// the last frame is then nearly right).
     pub distrust_ratio: f64,
+    pub distrust_after_steps: u64,
     /// Under active inference, hand over to the reactive fallback when no line sensor has seen the
     /// line for this long, seconds...
     pub fallback_after_s: f32,
@@ -70,8 +73,9 @@ impl Default for AgentConfig {
             enabled: true,
             trust_ratio: 0.7,
             trust_after_steps: 25,
-            min_probe: 0.3,
+            min_probe: 0.6,
             distrust_ratio: 1.0,
+            distrust_after_steps: 25,
             fallback_after_s: 0.5,
             resume_after_s: 0.5,
             preference_frames: 50,
@@ -219,6 +223,8 @@ pub struct Agent {
     spare: VecDeque<Drive>,
     lost_ticks: u32,
     centred_ticks: u32,
+    /// Model steps in a row the model has looked worse than `distrust_ratio`.
+    distrust_steps: u64,
     pub stats: AgentStats,
 }
 
@@ -251,6 +257,7 @@ impl Agent {
             spare: VecDeque::new(),
             lost_ticks: 0,
             centred_ticks: 0,
+            distrust_steps: 0,
             stats: AgentStats::default(),
         }
     }
@@ -282,6 +289,7 @@ impl Agent {
         }
         self.applied.push(t.applied);
         self.preference.observe(t.frame, t.line);
+        self.reactive.observe(t.line);
         self.lost_ticks = if t.line == [false; 3] { self.lost_ticks + 1 } else { 0 };
         self.centred_ticks = if t.line == [false, true, false] { self.centred_ticks + 1 } else { 0 };
 
@@ -315,6 +323,8 @@ impl Agent {
         let mut plan = None;
         if model_tick {
             let health = model.health();
+            let bad = health.model_over_copy.is_some_and(|r| r > self.cfg.distrust_ratio);
+            self.distrust_steps = if bad { self.distrust_steps + 1 } else { 0 };
             match self.mode {
                 Mode::ActiveInference if !self.still_trusted(&health) => {
                     tracing::warn!(?health, "world model no longer trusted: the reactive rule drives");
@@ -381,7 +391,7 @@ impl Agent {
 
     fn still_trusted(&self, h: &Health) -> bool {
         self.cfg.enabled
-            && h.model_over_copy.is_none_or(|r| r <= self.cfg.distrust_ratio)
+            && self.distrust_steps < self.cfg.distrust_after_steps.max(1)
             && (self.cfg.min_probe <= -1.0 || h.probe.is_none_or(|p| p >= self.cfg.min_probe))
     }
 
@@ -470,5 +480,199 @@ impl Agent {
             // Start planning afresh from the first frame of the new episode.
             self.mode = Mode::Fallback;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::Imagination;
+    use crate::preference::tests::line_frame;
+    use crate::worker::{Inline, PlanDone};
+
+    /// A model that counts its steps and reports the health it is given.
+    struct Toy {
+        skip: usize,
+        health: Health,
+        observed: Vec<Wheels>,
+    }
+
+    impl AgentModel for Toy {
+        type Snapshot = f32;
+        fn frame_skip(&self) -> Option<usize> {
+            Some(self.skip)
+        }
+        fn observe(&mut self, _: &[f32], a: Wheels) -> anyhow::Result<()> {
+            self.observed.push(a);
+            Ok(())
+        }
+        fn reset(&mut self) {}
+        fn snapshot(&mut self) -> anyhow::Result<f32> {
+            Ok(0.0)
+        }
+        fn health(&self) -> Health {
+            self.health
+        }
+    }
+
+    /// Imagines the line where it is, whatever the plan: every plan sees the same frames.
+    struct Still;
+
+    impl Imagination for Still {
+        type Start = f32;
+        fn start(&mut self, _: f32, _: Wheels) -> anyhow::Result<()> {
+            Ok(())
+        }
+        fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
+            Ok(plans.iter().map(|p| p.iter().flat_map(|_| line_frame(6.0, 0.0)).collect()).collect())
+        }
+    }
+
+    /// A planner that never finishes in time.
+    struct Never(bool);
+
+    impl PlanService<f32> for Never {
+        fn submit(&mut self, _: PlanJob<f32>) -> anyhow::Result<()> {
+            self.0 = true;
+            Ok(())
+        }
+        fn wait(&mut self, _: Duration) -> Option<PlanDone> {
+            None
+        }
+        fn idle(&self) -> bool {
+            !self.0
+        }
+    }
+
+    fn cfg() -> AgentConfig {
+        AgentConfig {
+            preference_frames: 5,
+            trust_after_steps: 2,
+            ..Default::default()
+        }
+    }
+
+    fn agent(cfg: &AgentConfig) -> Agent {
+        let off = ExplorationConfig { enabled: false, ..Default::default() };
+        Agent::new(cfg, &ReactiveConfig::default(), &off, FrameShape::CAR, 0.02)
+    }
+
+    fn tick<'a>(frame: &'a [f32], line: [bool; 3], applied: Wheels) -> Tick<'a> {
+        Tick { episode: 0, frame, line, applied, lockstep: true }
+    }
+
+    const CENTRED: [bool; 3] = [false, true, false];
+
+    #[test]
+    fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
+        let frame = line_frame(6.0, 0.0);
+        let mut model = Toy { skip: 3, health: Health::default(), observed: Vec::new() };
+        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
+        let mut a = agent(&cfg());
+        let mut applied = [0.0; 2];
+        for _ in 0..12 {
+            let d = a.tick(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
+            assert_eq!(d.driver, Driver::Reactive, "an untrusted model never drives");
+            applied = d.wheels;
+        }
+        assert_eq!(model.observed.len(), 4, "a model step every 3 control steps");
+        assert_eq!(model.observed[1], [8.0, 8.0], "the mean command of its segment");
+        model.health = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
+        let mut segments: Vec<Vec<Wheels>> = Vec::new();
+        for k in 0..12 {
+            let d = a.tick(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
+            assert_eq!(d.driver, Driver::ActiveInference, "step {k}");
+            if k % 3 == 0 {
+                segments.push(Vec::new());
+            }
+            segments.last_mut().unwrap().push(d.wheels);
+            applied = d.wheels;
+        }
+        for s in &segments {
+            assert!(s.iter().all(|w| *w == s[0]), "a command is held over its segment: {s:?}");
+        }
+        assert_eq!(a.stats.switches_to_active_inference, 1);
+        assert_eq!(a.stats.plans, 3, "each later segment takes up the plan made a segment ago");
+        // With the line held in view, only the priors decide: straight on, near the preferred speed.
+        let d = Drive::from_wheels(segments[2][0]);
+        assert!(d.turn.abs() < 2.0 && d.speed > 5.0, "{d:?}");
+    }
+
+    #[test]
+    fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
+        let frame = line_frame(6.0, 0.0);
+        let trusted = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
+        let mut model = Toy { skip: 2, health: trusted, observed: Vec::new() };
+        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
+        let mut a = agent(&cfg());
+        for _ in 0..20 {
+            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        }
+        assert!(a.driving_by_active_inference());
+        // 0.5 s without a line sensor on (25 steps), then the fallback.
+        let mut drivers = Vec::new();
+        for _ in 0..30 {
+            drivers.push(a.tick(&tick(&frame, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap().driver);
+        }
+        assert_eq!(drivers.iter().filter(|d| **d == Driver::ActiveInference).count(), 24);
+        assert_eq!(drivers.last(), Some(&Driver::Fallback));
+        assert_eq!(a.stats.fallbacks, 1);
+        // Seen again, centred for 0.5 s: active inference resumes.
+        let mut back = None;
+        for k in 0..40 {
+            let d = a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            if d.driver == Driver::ActiveInference {
+                back = Some(k);
+                break;
+            }
+        }
+        let k = back.expect("active inference resumes");
+        assert!((24..=26).contains(&k), "after ~25 centred steps, at a model step: {k}");
+        assert_eq!(a.stats.switches_to_active_inference, 2);
+    }
+
+    #[test]
+    fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
+        let frame = line_frame(6.0, 0.0);
+        let trusted = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
+        let mut model = Toy { skip: 2, health: trusted, observed: Vec::new() };
+        let mut a = agent(&cfg());
+        let mut never = Never(false);
+        let mut last = [0.0; 2];
+        for _ in 0..20 {
+            let d = a.tick(&Tick { lockstep: false, ..tick(&frame, CENTRED, last) }, &mut model, &mut never).unwrap();
+            last = d.wheels;
+        }
+        assert!(a.driving_by_active_inference(), "planning late is no reason to stop");
+        assert!(a.stats.late_plans >= 5, "{:?}", a.stats);
+        assert_eq!(a.stats.plans, 0);
+        assert_eq!(last, [8.0, 8.0], "the command held from the switch");
+    }
+
+    #[test]
+    fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
+        let frame = line_frame(6.0, 0.0);
+        let low_probe = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.2) };
+        let mut model = Toy { skip: 1, health: low_probe, observed: Vec::new() };
+        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
+        let mut a = agent(&cfg());
+        for _ in 0..20 {
+            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        }
+        assert!(!a.driving_by_active_inference(), "a probe below min_probe is not trusted");
+        model.health.probe = Some(0.9);
+        a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        assert!(a.driving_by_active_inference());
+        // A ratio above distrust_ratio for fewer than distrust_after_steps model steps is a swing.
+        model.health.model_over_copy = Some(1.5);
+        for _ in 0..20 {
+            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        }
+        assert!(a.driving_by_active_inference());
+        for _ in 0..10 {
+            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        }
+        assert!(!a.driving_by_active_inference(), "sustained: the rule drives again");
+        assert_eq!(a.stats.switches_to_reactive, 1);
     }
 }

@@ -26,7 +26,9 @@ fn main() -> anyhow::Result<()> {
     let agent_cfg: AgentConfig = toml::from_str(&std::env::var("AGENT").unwrap_or_default())?;
     // 1. Collect.
     let mut world = World::new(&scene)?;
-    let mut agent = Agent::new(&AgentConfig { enabled: false, ..agent_cfg.clone() }, &ReactiveConfig::default(), &ExplorationConfig::default(), FrameShape::CAR, 0.02);
+    let explore: ExplorationConfig = toml::from_str(&std::env::var("EXPLORE").unwrap_or_default())?;
+    let mut agent = Agent::new(&AgentConfig { enabled: false, ..agent_cfg.clone() }, &ReactiveConfig::default(), &explore, FrameShape::CAR, 0.02);
+    let mut referee = mtanet_scenes::Referee::new(3.0, 0.02, 0.1, 0.15);
     let (mut frames, mut applied, mut episodes) = (Vec::new(), Vec::new(), Vec::new());
     let (mut episode, mut lost, mut explored) = (0u32, 0u32, 0usize);
     for _ in 0..steps {
@@ -38,8 +40,7 @@ fn main() -> anyhow::Result<()> {
         applied.push(a);
         episodes.push(episode);
         world.step(d.wheels);
-        lost = if world.truth().lateral_m.abs() > 0.1 { lost + 1 } else { 0 };
-        if lost >= 150 { world.reset(); episode += 1; lost = 0; }
+        if referee.judge(&world.truth(), world.progress_m()) != mtanet_scenes::Verdict::Fine { world.reset(); referee.reset(); episode += 1; lost += 1; }
     }
     let span = window_span(skip, t_len);
     let starts: Vec<usize> = (skip - 1..steps.saturating_sub(span))
@@ -81,6 +82,7 @@ fn main() -> anyhow::Result<()> {
                 let mut ag = Agent::new(&agent_cfg, &ReactiveConfig::default(), &ExplorationConfig { enabled: false, ..Default::default() }, FrameShape::CAR, 0.02);
                 let mut plans = Inline::new(Planner::new(&agent_cfg.planner)?, Imagined::from_bytes(&bytes)?);
                 let r = drive(&mut w, &mut ag, &mut LiveSees(&mut live), &mut plans, &DriveConfig { max_steps: env("DRIVE_STEPS", 3000), trace_every: 0, ..Default::default() })?;
+                std::fs::copy(format!("/tmp/learn_{u}.safetensors"), format!("/tmp/learn_{}_{u}.safetensors", std::env::var("TAG").unwrap_or_default()))?;
                 eprintln!("update {u} drive {tr}: laps {} ai_laps {} lost {} fallbacks {} lat_r {:.4} lat_ai {:.4} ai_steps {} ratio {:?} plan {:.1}ms", r.laps, r.laps_under_active_inference, r.lost_events, r.agent.fallbacks, r.lateral_reactive_m.unwrap_or(f64::NAN), r.lateral_active_inference_m.unwrap_or(f64::NAN), r.agent.active_inference_steps, live.error_ratio(), r.plan_ms.p50);
             }
         }

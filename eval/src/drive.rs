@@ -21,6 +21,8 @@ pub struct DriveConfig {
     /// Put the car back at the start after this long more than `lost_lateral_m` off the line.
     pub reset_after_lost_s: f64,
     pub lost_lateral_m: f64,
+    /// ...or after driving this far backwards along the track in that time.
+    pub reverse_reset_m: f64,
     /// Keep every n-th step's position in the trace (0: no trace).
     pub trace_every: u64,
 }
@@ -32,6 +34,7 @@ impl Default for DriveConfig {
             stop_after_ai_laps: 0,
             reset_after_lost_s: 3.0,
             lost_lateral_m: 0.1,
+            reverse_reset_m: 0.15,
             trace_every: 5,
         }
     }
@@ -73,7 +76,7 @@ pub struct DriveReport {
     /// Laps completed, and those driven from start to end by active inference.
     pub laps: u32,
     pub laps_under_active_inference: u32,
-    /// Times the car was lost and put back (new episodes).
+    /// Times the car was lost (or drove the wrong way) and was put back (new episodes).
     pub lost_events: u32,
     /// Mean |lateral error| in metres over the steps each driver drove.
     pub lateral_reactive_m: Option<f64>,
@@ -111,12 +114,12 @@ where
     P: PlanService<M::Snapshot>,
 {
     let period = world.config().control_period_s;
-    let lost_limit = (cfg.reset_after_lost_s / period).round() as u64;
+    let mut referee = mtanet_scenes::Referee::new(cfg.reset_after_lost_s, period, cfg.lost_lateral_m, cfg.reverse_reset_m);
     let wall = Instant::now();
     let mut report = DriveReport::default();
     let mut plan_us = Histogram::<u64>::new(3)?;
     let (mut lat_reactive, mut lat_ai) = (Lateral::default(), Lateral::default());
-    let (mut episode, mut lost_steps, mut laps_before) = (0u32, 0u64, 0u32);
+    let (mut episode, mut laps_before) = (0u32, 0u32);
     // Laps count under active inference only if it drove every step since the last lap.
     let mut lap_all_ai = false;
     let mut last_laps = 0u32;
@@ -169,17 +172,13 @@ where
             lap_all_ai = true;
         }
         report.steps = step + 1;
-        lost_steps = if world.truth().lateral_m.abs() > cfg.lost_lateral_m {
-            lost_steps + 1
-        } else {
-            0
-        };
-        if lost_limit > 0 && lost_steps >= lost_limit {
-            tracing::warn!(step, episode, "car lost: back to the start");
+        let verdict = referee.judge(&world.truth(), world.progress_m());
+        if verdict != mtanet_scenes::Verdict::Fine {
+            tracing::warn!(step, episode, ?verdict, "car put back at the start");
             laps_before = laps;
             world.reset();
+            referee.reset();
             episode += 1;
-            lost_steps = 0;
             report.lost_events += 1;
             lap_all_ai = false;
         }
@@ -195,4 +194,35 @@ where
     report.plan_ms = Millis::of(&plan_us);
     report.wall_seconds = wall.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// Frames and the commands that led to them (`applied[i]`: frame i-1 -> i) from `steps` control
+/// steps of the reactive rule with seeded exploration on `world`, for figures and tests; the car
+/// is put back like in the simulator (a reset starts the recording over).
+pub fn record_reactive(world: &mut World, steps: usize, seed: u64) -> anyhow::Result<(Vec<[f32; 96]>, Vec<[f32; 2]>)> {
+    use mtanet_control::{AgentConfig, Blind, ExplorationConfig, FrameShape, NoPlans, ReactiveConfig};
+    let period = world.config().control_period_s;
+    let cfg = AgentConfig { enabled: false, ..Default::default() };
+    let exploration = ExplorationConfig { seed, ..Default::default() };
+    let mut agent = Agent::new(&cfg, &ReactiveConfig::default(), &exploration, FrameShape::CAR, period as f32);
+    let mut referee = mtanet_scenes::Referee::new(3.0, period, 0.1, 0.15);
+    let (mut frames, mut applied) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+    let mut episode = 0;
+    while frames.len() < steps {
+        let s = world.sense();
+        let a = world.command().map(|v| v as f32);
+        let t = Tick { episode, frame: &s.image, line: s.line, applied: a, lockstep: true };
+        let d = agent.tick(&t, &mut Blind, &mut NoPlans)?;
+        frames.push(s.image);
+        applied.push(a);
+        world.step(d.wheels);
+        if referee.judge(&world.truth(), world.progress_m()) != mtanet_scenes::Verdict::Fine {
+            world.reset();
+            referee.reset();
+            episode += 1;
+            frames.clear();
+            applied.clear();
+        }
+    }
+    Ok((frames, applied))
 }

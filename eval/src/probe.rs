@@ -121,8 +121,7 @@ pub fn probe(
         seed: cfg.seed,
         ..Default::default()
     };
-    let period = world.config().control_period_s as f32;
-    let mut agent = Agent::new(&driving, &ReactiveConfig::default(), &exploration, FrameShape::CAR, period);
+    let mut agent = Agent::new(&driving, &ReactiveConfig::default(), &exploration, FrameShape::CAR, world.config().control_period_s as f32);
     let mut none = mtanet_control::Inline::new(
         mtanet_control::Planner::new(&agent_cfg.planner)?,
         NoImagination,
@@ -135,7 +134,8 @@ pub fn probe(
     let (mut rhos, mut rhos_total, mut top2) = (Vec::new(), Vec::new(), 0usize);
     let mut model_ticks = 0usize;
     let mut episode = 0u32;
-    let mut lost = 0u32;
+    let period = world.config().control_period_s;
+    let mut referee = mtanet_scenes::Referee::new(3.0, period, 0.1, 0.15);
     let max_ticks = (cfg.warmup + cfg.spacing * cfg.states * 3) * skip + 10_000;
     for _ in 0..max_ticks {
         if rhos.len() >= cfg.states {
@@ -169,12 +169,11 @@ pub fn probe(
             }
         }
         world.step(d.wheels);
-        // Like the simulator: a car lost for 3 s starts a new episode at the start.
-        lost = if world.truth().lateral_m.abs() > 0.1 { lost + 1 } else { 0 };
-        if lost as f64 * world.config().control_period_s >= 3.0 {
+        // Like the simulator: a lost or turned-around car starts a new episode at the start.
+        if referee.judge(&world.truth(), world.progress_m()) != mtanet_scenes::Verdict::Fine {
             world.reset();
+            referee.reset();
             episode += 1;
-            lost = 0;
         }
     }
     anyhow::ensure!(

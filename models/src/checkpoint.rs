@@ -32,6 +32,12 @@ pub struct Meta {
     pub loss: Option<f64>,
     /// Seconds since the Unix epoch when saved.
     pub unix_time: u64,
+    /// The latest counterfactual probe of the training run (rank correlation) and the step it
+    /// was measured at, so a model started from this file alone can be judged for control.
+    #[serde(default)]
+    pub probe: Option<f64>,
+    #[serde(default)]
+    pub probe_step: Option<u64>,
 }
 
 impl Meta {
@@ -44,7 +50,16 @@ impl Meta {
             step,
             loss: loss.filter(|l| l.is_finite()),
             unix_time,
+            probe: None,
+            probe_step: None,
         }
+    }
+
+    /// With the latest probe `(step, rank correlation)`.
+    pub fn with_probe(mut self, probe: Option<(u64, f64)>) -> Self {
+        self.probe_step = probe.map(|p| p.0);
+        self.probe = probe.map(|p| p.1).filter(|p| p.is_finite());
+        self
     }
 }
 

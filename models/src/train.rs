@@ -92,6 +92,9 @@ pub struct Trainer {
     pub opt: Adam,
     pub cfg: ModelConfig,
     pub train_cfg: TrainConfig,
+    /// The latest counterfactual probe of these weights' run: (step, rank correlation). Saved
+    /// with checkpoints and restored on resume.
+    pub probe: Option<(u64, f64)>,
     step: u64,
     refused: u64,
 }
@@ -118,6 +121,7 @@ impl Trainer {
             opt,
             cfg: cfg.clone(),
             train_cfg: train_cfg.clone(),
+            probe: None,
             step: 0,
             refused: 0,
         })
@@ -225,7 +229,7 @@ impl Trainer {
 
     /// The checkpoint of the current weights, as bytes (what the trainer ships to the predictor).
     pub fn checkpoint_bytes(&self, loss: Option<f64>) -> Result<Vec<u8>, CheckpointError> {
-        checkpoint::to_bytes(&self.vs, &self.cfg, &Meta::new(self.step, loss))
+        checkpoint::to_bytes(&self.vs, &self.cfg, &Meta::new(self.step, loss).with_probe(self.probe))
     }
 
     /// Saves the checkpoint atomically to `path`, then Adam's moments next to it
@@ -235,7 +239,7 @@ impl Trainer {
         path: &std::path::Path,
         loss: Option<f64>,
     ) -> Result<(), CheckpointError> {
-        let meta = Meta::new(self.step, loss);
+        let meta = Meta::new(self.step, loss).with_probe(self.probe);
         checkpoint::save(path, &self.vs, &self.cfg, &meta)?;
         let moments = self.opt.to_bytes(&self.cfg, &meta)?;
         checkpoint::write_atomic(&optimizer_path(path), &moments)
@@ -248,6 +252,7 @@ impl Trainer {
     pub fn resume(&mut self, path: &std::path::Path) -> Result<Meta, CheckpointError> {
         let meta = checkpoint::load_into(path, &mut self.vs, &self.cfg)?;
         self.step = meta.step;
+        self.probe = meta.probe_step.zip(meta.probe);
         let opt_path = optimizer_path(path);
         let restored = std::fs::read(&opt_path)
             .map_err(|source| CheckpointError::Io {

@@ -13,12 +13,14 @@ pub mod car;
 mod config;
 mod cull;
 pub mod mjcf;
+mod referee;
 mod teacher;
 pub mod track;
 mod truth;
 mod world;
 
 pub use config::{SceneConfig, SceneError, shipped_track, tracks_dir};
+pub use referee::{Referee, Verdict};
 pub use teacher::{Teacher, TeacherConfig};
 pub use track::{Track, TrackError};
 pub use truth::GroundTruth;

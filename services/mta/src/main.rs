@@ -1,10 +1,13 @@
 //! `mta`: the operator CLI.
 
+mod canvas;
 mod figures;
 mod soak;
 mod status;
+mod report;
 mod synth;
 mod train;
+mod up;
 
 use clap::{Parser, Subcommand};
 
@@ -31,6 +34,11 @@ enum Cmd {
     Status(status::StatusArgs),
     /// Run the three-process stack in lockstep for N steps and print latency percentiles.
     Soak(soak::SoakArgs),
+    /// Run the whole stack here (trainer, predictor, simulator) with a live progress line and a
+    /// report in the run folder (what ./ops/run_local.sh runs).
+    Up(up::UpArgs),
+    /// Write a run folder's report.json and pictures from its summaries and trace.
+    Report(report::ReportArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -41,5 +49,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Synth(a) => synth::run(a),
         Cmd::Status(a) => status::run(a),
         Cmd::Soak(a) => soak::run(a),
+        Cmd::Up(a) => up::run(a),
+        Cmd::Report(a) => report::run(a),
     }
 }

@@ -55,6 +55,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         "--mode".into(),
         "lockstep".into(),
         "--expect-trainer".into(),
+        // A latency soak runs as fast as the stack answers, not at the trainer's pace.
+        "--pace".into(),
+        "0".into(),
         "--max-steps".into(),
         args.steps.to_string(),
     ]);

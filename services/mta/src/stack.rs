@@ -61,12 +61,29 @@ impl Proc {
         args: &[S],
         log_dir: &Path,
     ) -> std::io::Result<Proc> {
+        Self::try_spawn_with(name, args, log_dir, false)
+    }
+
+    /// [`Proc::try_spawn`], optionally in a process group of its own: a Ctrl-C at the terminal
+    /// then reaches only the parent, which stops the child with one signal (a second one
+    /// would make it exit at once, skipping its clean-up).
+    pub fn try_spawn_with<S: AsRef<OsStr>>(
+        name: &str,
+        args: &[S],
+        log_dir: &Path,
+        own_group: bool,
+    ) -> std::io::Result<Proc> {
+        use std::os::unix::process::CommandExt;
         let log = log_dir.join(format!("{name}.log"));
         let file = std::fs::File::create(&log)?;
         let path = bin_dir().join(name);
-        let child = Command::new(&path)
+        let mut cmd = Command::new(&path);
+        if own_group {
+            cmd.process_group(0);
+        }
+        let child = cmd
             .args(args)
-            .env("RUST_LOG", "info")
+            .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
             .stdout(Stdio::null())
             .stderr(file)
             .spawn()

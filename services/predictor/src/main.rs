@@ -17,6 +17,9 @@ struct Args {
     /// Config sections read: [ipc], [predictor].
     #[command(flatten)]
     common: CommonArgs,
+    /// Start with the weights of this checkpoint (newer ones from a trainer replace them).
+    #[arg(long)]
+    checkpoint: Option<std::path::PathBuf>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -24,11 +27,17 @@ fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let (cfg, ipc, shutdown): (PredictorConfig, _, _) = args.common.start("predictor")?;
     tch::set_num_threads(cfg.torch_threads);
+    let mut policy = mtanet_predictor::policy::Policy::new(&cfg);
+    if let Some(path) = &args.checkpoint {
+        policy.load_file(path)?;
+        let probe = policy.model.as_ref().and_then(|m| m.probe);
+        tracing::info!(path = %path.display(), ?probe, "weights loaded from file");
+    }
     let node = create_node(&ipc, "mta-predictor")?;
     let ports = service::Ports::open(&node)?;
     systemd::ready("predictor running");
     tracing::info!(namespace = %ipc.namespace, "predictor service started");
-    let summary = service::run(&ports, &cfg, &shutdown);
+    let summary = service::run_with(&ports, &cfg, policy, &shutdown);
     systemd::stopping();
     let summary = summary?;
     tracing::info!(answered = summary.commands_sent, gaps = summary.step_gaps, compute = %summary.compute, "predictor stopped");

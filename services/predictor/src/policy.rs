@@ -79,6 +79,17 @@ impl Policy {
         }
     }
 
+    /// Weights from a checkpoint file (its recorded probe, if any, comes along).
+    pub fn load_file(&mut self, path: &std::path::Path) -> anyhow::Result<()> {
+        use anyhow::Context;
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let ck = mtanet_models::checkpoint::from_bytes(&bytes)
+            .with_context(|| format!("the checkpoint {}", path.display()))?;
+        let probe = ck.meta.probe.map_or(f32::NAN, |p| p as f32);
+        self.load_weights(&bytes, 0, probe)
+            .with_context(|| format!("the checkpoint {}", path.display()))
+    }
+
     /// New weights from the trainer (`probe`: its counterfactual probe, NaN if none). Returns
     /// the error if they were refused; the previous model then keeps driving.
     pub fn load_weights(&mut self, bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<()> {
@@ -140,6 +151,32 @@ mod tests {
         o.step = step;
         o.lockstep = 1;
         o
+    }
+
+    /// The world model is conditioned on the command applied (what a plan chooses), never on the
+    /// measured wheel speed.
+    #[test]
+    fn the_model_steps_with_the_applied_command_not_the_measured_speed() {
+        let ck = small_checkpoint(3, small());
+        let fingerprint = |vary: &dyn Fn(&mut Observation, u64)| -> f64 {
+            let mut p = Policy::new(&PredictorConfig::default());
+            p.load_weights(&ck, 1, f32::NAN).unwrap();
+            for s in 0..8 {
+                let mut o = obs([0, 1, 0], s);
+                o.image = [0.3 + 0.05 * s as f32; 96];
+                o.command = [6.0, 7.0];
+                o.wheel_velocity = [5.0, 5.5];
+                vary(&mut o, s);
+                p.act(&o).unwrap();
+            }
+            let m = p.model.as_ref().unwrap();
+            m.state().layers[0].r.abs().sum(tch::Kind::Double).double_value(&[])
+        };
+        let base = fingerprint(&|_, _| {});
+        let other_speed = fingerprint(&|o, s| o.wheel_velocity = [s as f32, 9.0]);
+        let other_command = fingerprint(&|o, s| o.command = [2.0 + s as f32, 11.0]);
+        assert_eq!(base, other_speed, "the measured speed must not matter");
+        assert_ne!(base, other_command, "the applied command must");
     }
 
     #[test]

@@ -58,6 +58,8 @@ pub struct Summary {
     pub compute: LatencySummary,
     /// Wall time of each plan taken up (computed on the planner's thread).
     pub plan: LatencySummary,
+    /// Histogram (upper bound in us, count) of `compute`, for pictures.
+    pub compute_hist: Vec<[f64; 2]>,
 }
 
 /// Per-step latencies the loop records.
@@ -69,10 +71,19 @@ struct StepStats {
 }
 
 pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
+    run_with(ports, cfg, Policy::new(cfg), shutdown)
+}
+
+/// [`run`] with a policy made by the caller (e.g. with weights loaded from a file).
+pub fn run_with(
+    ports: &Ports,
+    cfg: &PredictorConfig,
+    mut policy: Policy,
+    shutdown: &Shutdown,
+) -> anyhow::Result<Summary> {
     let waitset = create_waitset()?;
     let obs_guard = waitset.attach_notification(ports.observations.listener())?;
     let weights_guard = waitset.attach_notification(ports.weights.listener())?;
-    let mut policy = Policy::new(cfg);
     let mut summary = Summary::default();
     let mut stats = StepStats::default();
     let mut expected_step: Option<u64> = None;
@@ -135,6 +146,7 @@ pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow:
     summary.observation_age = stats.age.summary();
     summary.compute = stats.compute.summary();
     summary.plan = stats.plan.summary();
+    summary.compute_hist = stats.compute.histogram();
     Ok(summary)
 }
 

@@ -57,6 +57,9 @@ pub struct SimulatorConfig {
     pub reset_after_lost_s: f64,
     /// Distance from the line beyond which the car counts as lost.
     pub lost_lateral_m: f64,
+    /// Also put the car back once it has driven this far backwards along the track within
+    /// `reset_after_lost_s` (turned around, it would follow the line the wrong way); 0 = never.
+    pub reverse_reset_m: f64,
     /// Lockstep: once the trainer trains, wait for it so that it makes this many updates per
     /// 1000 simulated steps (0: run as fast as the predictor answers). Learning per simulated
     /// second is then the same on a slow or a fast machine.
@@ -83,7 +86,8 @@ impl Default for SimulatorConfig {
             log_every_s: 5.0,
             reset_after_lost_s: 3.0,
             lost_lateral_m: 0.1,
-            pace_updates_per_1000_steps: 0.0,
+            reverse_reset_m: 0.15,
+            pace_updates_per_1000_steps: 40.0,
             trace_every_steps: 5,
             scene: SceneConfig::default(),
             teacher: TeacherConfig::default(),

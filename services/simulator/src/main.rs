@@ -55,6 +55,10 @@ struct Args {
     /// Steps per recorded sequence.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
     seq_len: u64,
+    /// Lockstep pacing: trainer updates per 1000 steps (overrides
+    /// simulator.pace_updates_per_1000_steps; 0: off).
+    #[arg(long)]
+    pace: Option<f64>,
     /// Service mode: write the car's path and who drove it (CSV) to this file.
     #[arg(long, conflicts_with = "teacher_only")]
     trace: Option<PathBuf>,
@@ -88,6 +92,9 @@ fn main() -> anyhow::Result<()> {
         cfg.max_steps = n;
     }
     cfg.expect_trainer |= args.expect_trainer;
+    if let Some(p) = args.pace {
+        cfg.pace_updates_per_1000_steps = p;
+    }
 
     if args.seed.is_some() && cfg.teacher.noise_std == 0.0 {
         // Without noise the teacher is deterministic: every seed records the same data.

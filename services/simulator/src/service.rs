@@ -13,7 +13,7 @@ use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::{
     Command, CommandSource, Observation, REPLAY_STEPS, ReplayChunk, TrainerStatus, names, stamp,
 };
-use mtanet_scenes::{Sensors, Teacher, World};
+use mtanet_scenes::{Referee, Sensors, Teacher, Verdict, World};
 use serde::{Deserialize, Serialize};
 
 use crate::config::{MissPolicy, Mode, SimulatorConfig};
@@ -61,12 +61,21 @@ pub struct Summary {
     pub replay_chunks_sent: u64,
     /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
     pub dead_nodes_cleaned: u64,
-    /// Times the car was lost and put back at the start (episodes - 1).
+    /// Times the car was lost (or drove the wrong way) and was put back at the start
+    /// (episodes - 1).
     pub resets: u64,
+    /// Of those, the times it drove the wrong way round.
+    pub wrong_way_resets: u64,
     /// Observation published -> its command received, as seen by the simulator.
     pub round_trip: LatencySummary,
-    /// Wall time of one whole step (physics, sensors, publishing, waiting).
+    /// Wall time of one step's work (sensors, publishing, waiting for the command, physics);
+    /// in real time without the wait for the next tick.
     pub step_time: LatencySummary,
+    /// Real time: how far past its 50 Hz tick each step finished (floor 1 us).
+    pub tick_late: LatencySummary,
+    /// Histograms (upper bound in us, count) of `step_time` and `round_trip`, for pictures.
+    pub step_time_hist: Vec<[f64; 2]>,
+    pub round_trip_hist: Vec<[f64; 2]>,
     pub laps: u32,
     pub lateral_error_m: LateralError,
     /// Who drove, and how well (per command source).
@@ -102,6 +111,8 @@ pub fn run(
     // Who decided the command in force (it led to the next frame).
     let mut applied_source = CommandSource::Teacher;
     let (mut round_trip, mut step_time) = (LatencyStats::new(), LatencyStats::new());
+    // Real time: how late each step finished against its 50 Hz tick (0 when on time).
+    let mut tick_late = LatencyStats::new();
     let mut chunk = ChunkBuilder::default();
     let mut last_cmd = [0.0f32; 2];
     let mut consecutive_misses = 0u32;
@@ -117,8 +128,7 @@ pub fn run(
     let mut last_log = start;
     let mut step = 0u64;
     let mut episode = 0u32;
-    let mut lost_steps = 0u64;
-    let lost_limit = (cfg.reset_after_lost_s / period).round() as u64;
+    let mut referee = Referee::new(cfg.reset_after_lost_s, period, cfg.lost_lateral_m, cfg.reverse_reset_m);
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = Instant::now();
@@ -205,18 +215,13 @@ pub fn run(
                 "rejected a non-finite wheel command; keeping the last good one"
             );
         }
-        lost_steps = if sensors.truth.lateral_m.abs() > cfg.lost_lateral_m {
-            lost_steps + 1
-        } else {
-            0
-        };
-        if lost_limit > 0 && lost_steps >= lost_limit {
-            tracing::warn!(
-                step,
-                episode,
-                lateral_m = sensors.truth.lateral_m,
-                "car lost the line: back to the start, new episode"
-            );
+        let verdict = referee.judge(&world.truth(), world.progress_m());
+        if verdict != Verdict::Fine {
+            let why = match verdict {
+                Verdict::Lost => "car lost the line",
+                _ => "car drives the wrong way round",
+            };
+            tracing::warn!(step, episode, lateral_m = world.truth().lateral_m, "{why}: back to the start, new episode");
             world.reset();
             teacher.reset();
             drive.end_episode();
@@ -224,15 +229,21 @@ pub fn run(
             applied_source = CommandSource::Teacher; // the reset's zero command
             chunk.discard(); // a training sequence never spans a reset
             episode += 1;
-            lost_steps = 0;
+            referee.reset();
             summary.resets += 1;
+            if verdict == Verdict::WrongWay {
+                summary.wrong_way_resets += 1;
+            }
         }
         step += 1;
+        // The step's own work (in real time the wait for the next tick comes after).
+        step_time.record_ns(t0.elapsed().as_nanos() as u64);
         if cfg.mode == Mode::Realtime {
             let next = start + Duration::from_secs_f64(step as f64 * period);
+            let late = Instant::now().saturating_duration_since(next);
+            tick_late.record_ns(late.as_nanos() as u64);
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }
-        step_time.record_ns(t0.elapsed().as_nanos() as u64);
         watchdog.pet();
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
@@ -253,6 +264,9 @@ pub fn run(
     summary.rejected_commands = world.rejected_commands();
     summary.round_trip = round_trip.summary();
     summary.step_time = step_time.summary();
+    summary.tick_late = tick_late.summary();
+    summary.step_time_hist = step_time.histogram();
+    summary.round_trip_hist = round_trip.histogram();
     summary.laps = drive.laps();
     summary.lateral_error_m = drive.lateral();
     summary.control = control.summary();

@@ -67,3 +67,42 @@ fn a_lost_car_is_put_back_as_a_new_episode() {
         d.truth
     );
 }
+
+/// The action the model learns from is the command the planner chooses: each replay step and
+/// each observation carry the command applied from the previous frame to this one (not the
+/// measured wheel speed, which lags it), with who decided it.
+#[test]
+fn replay_and_observations_carry_the_applied_command_and_its_source() {
+    use mtanet_ipc::CommandSource;
+    let cfg = SimulatorConfig {
+        max_steps: 100,
+        wait_for_peers_s: 20.0,
+        replay_linger_s: 0.5,
+        ..Default::default()
+    };
+    let cmd_of = |step: u64| [4.0 + (step % 7) as f32, 6.0 - (step % 3) as f32];
+    let src_of = |step: u64| if step % 5 == 0 { CommandSource::Exploration } else { CommandSource::ActiveInference };
+    let d = common::drive_with("act", cfg, |o| (cmd_of(o.step), src_of(o.step)));
+    assert_eq!(d.chunks.len(), 5, "{} chunks", d.chunks.len());
+    for c in &d.chunks {
+        for i in 0..c.len as usize {
+            let step = c.first_step + i as u64;
+            let (want, src) = if step == 0 {
+                ([0.0, 0.0], CommandSource::Teacher) // the reset's zero command led to frame 0
+            } else {
+                (cmd_of(step - 1), src_of(step - 1))
+            };
+            assert_eq!(c.actions[i], want, "step {step}");
+            assert_eq!(c.sources[i], src as u8, "step {step}");
+        }
+    }
+    for o in &d.observations[1..] {
+        assert_eq!(o.command, cmd_of(o.step - 1), "step {}", o.step);
+        assert_eq!(o.lockstep, 1);
+        assert_ne!(o.wheel_velocity, o.command, "the measured speed lags: step {}", o.step);
+    }
+    let s = &d.summary.control;
+    assert_eq!(s.steps["exploration"], 20);
+    assert_eq!(s.steps["active_inference"], 80);
+    assert!((s.exploration_fraction - 0.2).abs() < 1e-9);
+}

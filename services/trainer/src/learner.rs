@@ -25,8 +25,6 @@ pub struct Learner {
     publish_every: u64,
     /// The counterfactual probe, run every so many updates (none: never).
     prober: Option<Prober>,
-    /// The latest probe: (training step, rank correlation).
-    pub probe: Option<(u64, f64)>,
     checkpoint: Option<PathBuf>,
     version: u64,
     last_loss: Option<f64>,
@@ -66,13 +64,17 @@ impl Learner {
             sequence_steps: cfg.sequence_steps.max(2),
             publish_every: cfg.publish_every_updates.max(1),
             prober: None,
-            probe: None,
             checkpoint,
             version: 0,
             last_loss: None,
             saved_step,
             refused: 0,
         })
+    }
+
+    /// The latest probe: (training step, rank correlation).
+    pub fn probe(&self) -> Option<(u64, f64)> {
+        self.trainer.probe
     }
 
     pub fn updates(&self) -> u64 {
@@ -159,7 +161,7 @@ impl Learner {
                     seconds = t0.elapsed().as_secs_f64(),
                     "counterfactual probe"
                 );
-                self.probe = Some((self.trainer.step(), r.rank_correlation));
+                self.trainer.probe = Some((self.trainer.step(), r.rank_correlation));
             }
             // The probe judges the model; failing to run it must not stop the learning.
             Err(e) => tracing::error!("the counterfactual probe failed: {e:#}"),
@@ -179,8 +181,8 @@ impl Learner {
             train_step: self.trainer.step(),
             loss: self.last_loss.unwrap_or(f64::NAN) as f32,
             schema: SCHEMA_VERSION,
-            probe_step: self.probe.map_or(0, |p| p.0),
-            probe: self.probe.map_or(f32::NAN, |p| p.1 as f32),
+            probe_step: self.trainer.probe.map_or(0, |p| p.0),
+            probe: self.trainer.probe.map_or(f32::NAN, |p| p.1 as f32),
             ..Default::default()
         };
         weights.send(header, &bytes)?;

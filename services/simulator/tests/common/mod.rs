@@ -5,7 +5,7 @@ use std::time::Duration;
 use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::{Command, Observation, names, stamp};
+use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, names, stamp};
 use mtanet_scenes::{GroundTruth, SceneConfig, Teacher, TeacherConfig, World};
 use mtanet_simulator::config::SimulatorConfig;
 use mtanet_simulator::service::{Ports, Summary, run};
@@ -16,13 +16,26 @@ pub struct Drive {
     pub truth: GroundTruth,
     /// Episode of every observation, in order.
     pub episodes: Vec<u8>,
+    /// Every observation, and every replay chunk received, in order.
+    pub observations: Vec<Observation>,
+    pub chunks: Vec<Box<ReplayChunk>>,
 }
 
 /// Runs `cfg.max_steps` lockstep steps answering each observation with `command(obs)`.
+#[allow(dead_code)]
 pub fn drive(
     tag: &str,
     cfg: SimulatorConfig,
     mut command: impl FnMut(&Observation) -> [f32; 2],
+) -> Drive {
+    drive_with(tag, cfg, move |o| (command(o), CommandSource::Reactive))
+}
+
+/// [`drive`] with the source of each command scripted too.
+pub fn drive_with(
+    tag: &str,
+    cfg: SimulatorConfig,
+    mut command: impl FnMut(&Observation) -> ([f32; 2], CommandSource),
 ) -> Drive {
     let ns = IpcConfig {
         namespace: format!("{tag}{}", std::process::id()),
@@ -48,11 +61,24 @@ pub fn drive(
         (summary, world.truth())
     });
     let mut episodes = Vec::new();
+    let mut observations = Vec::new();
+    let mut chunks = Vec::new();
     {
         let node = create_node(&ns, "scripted-predictor").unwrap();
         let obs =
             Receiver::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP).unwrap();
         let cmd = Sender::<Command>::open(&node, names::COMMAND, TopicShape::STEP).unwrap();
+        let replay =
+            Receiver::<ReplayChunk>::open(&node, names::REPLAY, TopicShape::REPLAY).unwrap();
+        let take = |chunks: &mut Vec<Box<ReplayChunk>>| {
+            replay
+                .for_each(|c| {
+                    let mut b: Box<ReplayChunk> = bytemuck::zeroed_box();
+                    *b = *c;
+                    chunks.push(b);
+                })
+                .unwrap();
+        };
         while (episodes.len() as u64) < steps && !sim.is_finished() {
             obs.wait(Duration::from_millis(50)).unwrap();
             obs.drain_events().unwrap();
@@ -60,16 +86,25 @@ pub fn drive(
             obs.for_each(|o| pending.push(*o)).unwrap();
             for o in pending {
                 episodes.push(o.episode);
-                let wheels = command(&o);
+                observations.push(o);
+                let (wheels, source) = command(&o);
                 cmd.send_with(|c| {
                     c.step = o.step;
                     c.obs_stamp_ns = o.stamp_ns;
                     c.wheel_velocity = wheels;
+                    c.source = source as u32;
                     c.stamp_ns = stamp::monotonic_ns();
                 })
                 .unwrap();
             }
+            take(&mut chunks);
         }
+        // The simulator lingers with its replay publisher while a subscriber is connected.
+        while !sim.is_finished() {
+            take(&mut chunks);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        take(&mut chunks);
     }
     let (summary, truth) = sim.join().unwrap();
     // iceoryx2 keeps a node counter per namespace by design; this namespace is used once.
@@ -78,5 +113,7 @@ pub fn drive(
         summary,
         truth,
         episodes,
+        observations,
+        chunks,
     }
 }

@@ -1,0 +1,315 @@
+//! `mta up`: the whole stack on this machine (what `./ops/run_local.sh` runs). Starts the
+//! trainer, the predictor and the simulator as separate processes on one stack config, shows
+//! one live progress line, stops them cleanly on Ctrl-C / SIGTERM or when the simulated time is
+//! up, and leaves in the run folder: each process's log and summary, the effective config
+//! (`stack.toml`), the car's trace, the learned checkpoint (`model.safetensors`) and the
+//! report (`report.json`, `lap_trace.png`, `latency.png`, `figure.png`; see `mta report`).
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use mtanet_ipc::config::ConfigFile;
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::ports::{Receiver, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::{Command, CommandSource, Observation, names};
+
+use crate::report::{self, RunInfo};
+use mtanet_mta::stack::{Proc, wait_for_alive};
+
+#[derive(Debug, clap::Args)]
+pub struct UpArgs {
+    /// Stack config (TOML; default ops/mtanet.toml when it exists, else built-in defaults).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Track CSV (default: the shipped oval).
+    #[arg(long)]
+    track: Option<PathBuf>,
+    /// Stop after this much simulated time (0: until Ctrl-C).
+    #[arg(long, default_value_t = 0.0)]
+    sim_seconds: f64,
+    /// Lockstep: every step waits for its command (default: real time, 50 Hz).
+    #[arg(long)]
+    lockstep: bool,
+    /// Run folder (default runs/<timestamp>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Start from this learned checkpoint: the trainer resumes from it and the predictor gets it
+    /// at once (with --no-learning the predictor alone loads it).
+    #[arg(long)]
+    checkpoint: Option<PathBuf>,
+    /// No trainer: the predictor drives with --checkpoint as it is.
+    #[arg(long, requires = "checkpoint")]
+    no_learning: bool,
+    /// iceoryx2 namespace (default: the config's [ipc] namespace).
+    #[arg(long)]
+    namespace: Option<String>,
+}
+
+fn default_out() -> PathBuf {
+    let now = std::process::Command::new("date").arg("+%Y%m%d-%H%M%S").output();
+    let stamp = now
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|| "run".into());
+    PathBuf::from("runs").join(stamp)
+}
+
+/// The config the processes get: the user's, with the run folder's checkpoint directory (unless
+/// it names one) and the mode; checked section by section before anything starts.
+fn effective_config(args: &UpArgs, out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let source = args
+        .config
+        .clone()
+        .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
+    let mut table: toml::Table = match &source {
+        Some(p) => std::fs::read_to_string(p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .parse()
+            .with_context(|| format!("{} is not valid TOML", p.display()))?,
+        None => toml::Table::new(),
+    };
+    let section = |t: &mut toml::Table, name: &str| -> anyhow::Result<toml::Table> {
+        match t.remove(name) {
+            None => Ok(toml::Table::new()),
+            Some(toml::Value::Table(s)) => Ok(s),
+            Some(_) => bail!("[{name}] in the config must be a table"),
+        }
+    };
+    let mut trainer = section(&mut table, "trainer")?;
+    let ck_dir = match trainer.get("checkpoint_dir").and_then(|v| v.as_str()) {
+        Some(d) => PathBuf::from(d),
+        None => {
+            let d = std::path::absolute(out.join("checkpoints"))?;
+            trainer.insert("checkpoint_dir".into(), d.to_string_lossy().into_owned().into());
+            d
+        }
+    };
+    table.insert("trainer".into(), trainer.into());
+    let mut sim = section(&mut table, "simulator")?;
+    if args.lockstep {
+        sim.insert("mode".into(), "lockstep".into());
+    }
+    table.insert("simulator".into(), sim.into());
+    let path = out.join("stack.toml");
+    std::fs::write(&path, toml::to_string(&table)?)?;
+    // Every section, as the services will read it: a typo fails here, naming file and key.
+    let file = ConfigFile::load(Some(&path))?;
+    let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let _: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
+    let _: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    Ok((path, ck_dir))
+}
+
+pub fn run(args: UpArgs) -> anyhow::Result<()> {
+    let shutdown = Shutdown::install().context("installing signal handlers")?;
+    let out = args.out.clone().unwrap_or_else(default_out);
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let (config, ck_dir) = effective_config(&args, &out)?;
+    let file = ConfigFile::load(Some(&config))?;
+    let mut ipc: IpcConfig = file.section("ipc")?;
+    if let Some(ns) = &args.namespace {
+        ipc.namespace = ns.clone();
+    }
+    let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
+    let track = args.track.clone().unwrap_or(scene.track);
+    mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;
+    let start_ck = match &args.checkpoint {
+        Some(ck) => Some(probed_copy(ck, &file, &track, &out)?),
+        None => None,
+    };
+    if let (Some(ck), false) = (&start_ck, args.no_learning) {
+        std::fs::create_dir_all(&ck_dir)?;
+        std::fs::copy(ck, ck_dir.join("latest.safetensors"))?;
+        let opt = mtanet_models::train::optimizer_path(args.checkpoint.as_ref().expect("given"));
+        if opt.exists() {
+            std::fs::copy(&opt, mtanet_models::train::optimizer_path(&ck_dir.join("latest.safetensors")))?;
+        }
+    }
+    let info = RunInfo {
+        track: track.clone(),
+        lockstep: args.lockstep,
+        learning: !args.no_learning,
+        checkpoint: args.checkpoint.clone(),
+        config: args.config.clone(),
+    };
+    mtanet_ipc::report::write_json(&out.join("run.json"), &info)?;
+    eprintln!("[up] run folder {}; config {}", out.display(), config.display());
+
+    let arg = |p: &Path| p.to_string_lossy().into_owned();
+    let common = |name: &str| -> Vec<String> {
+        vec![
+            "--config".into(),
+            arg(&config),
+            "--namespace".into(),
+            ipc.namespace.clone(),
+            "--summary".into(),
+            arg(&out.join(format!("{name}.json"))),
+        ]
+    };
+    let spawn = |name: &str, extra: Vec<String>| -> anyhow::Result<Proc> {
+        let mut a = common(name);
+        a.extend(extra);
+        let p = Proc::try_spawn_with(name, &a, &out, true)?;
+        eprintln!("[up] started {name} (pid {})", p.pid());
+        Ok(p)
+    };
+    let mut procs: Vec<Proc> = Vec::new();
+    if !args.no_learning {
+        procs.push(spawn("mta-trainer", vec!["--track".into(), arg(&track)])?);
+    }
+    let mut pred_args = Vec::new();
+    if let (true, Some(ck)) = (args.no_learning, &start_ck) {
+        pred_args = vec!["--checkpoint".into(), arg(ck)];
+    }
+    procs.push(spawn("mta-predictor", pred_args)?);
+    if wait_for_alive(&ipc.namespace, procs.len(), Duration::from_secs(60)).alive.len() < procs.len() {
+        bail!("the services did not come up; see the logs in {}", out.display());
+    }
+    let mut sim_args = vec!["--track".into(), arg(&track), "--trace".into(), arg(&out.join("trace.csv"))];
+    if args.sim_seconds > 0.0 {
+        let steps = (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
+        sim_args.extend(["--max-steps".into(), steps.to_string()]);
+    }
+    procs.push(spawn("mta-simulator", sim_args)?);
+
+    let outcome = watch(&ipc, &mut procs, &shutdown);
+    if let Some(line) = &outcome.as_ref().err() {
+        eprintln!("\n[up] {line:#}");
+    }
+    eprintln!("\n[up] stopping");
+    for p in procs.iter_mut().rev() {
+        if p.is_running() {
+            p.signal(libc::SIGTERM);
+        }
+    }
+    let mut failed = Vec::new();
+    for p in procs.iter_mut() {
+        match p.try_wait_for(Duration::from_secs(60)) {
+            Some(s) if s.success() => {}
+            Some(s) => failed.push(format!("{} exited with {s}", p.name)),
+            None => failed.push(format!("{} did not stop within 60 s", p.name)),
+        }
+    }
+    let latest = ck_dir.join("latest.safetensors");
+    if latest.exists() {
+        std::fs::copy(&latest, out.join("model.safetensors"))?;
+    } else if let Some(ck) = &args.checkpoint {
+        std::fs::copy(ck, out.join("model.safetensors"))?;
+    }
+    let r = report::write(&out)?;
+    eprintln!(
+        "[up] {} steps ({:.0} s simulated) in {:.0} s; laps {} (active inference {}); control {}; report {}",
+        r.steps,
+        r.sim_seconds,
+        r.wall_seconds,
+        r.laps["completed"],
+        r.laps["completed_under_active_inference"],
+        r.control,
+        out.join("report.json").display()
+    );
+    outcome?;
+    if !failed.is_empty() {
+        bail!("{}", failed.join("; "));
+    }
+    Ok(())
+}
+
+/// Checks the starting checkpoint and probes it on this run's track (the predictor trusts
+/// weights for control only with a passing probe, and a model learnt elsewhere has none here):
+/// writes `start.safetensors` in the run folder with the probe recorded, and returns its path.
+fn probed_copy(ck: &Path, file: &ConfigFile, track: &Path, out: &Path) -> anyhow::Result<PathBuf> {
+    use mtanet_models::checkpoint;
+    let bytes = std::fs::read(ck).with_context(|| format!("reading the checkpoint {}", ck.display()))?;
+    let mut loaded = checkpoint::from_bytes(&bytes).with_context(|| format!("the checkpoint {}", ck.display()))?;
+    let agent: mtanet_control::AgentConfig = file.section("predictor.active_inference")?;
+    let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());
+    tch::set_num_threads(1);
+    let probe = mtanet_eval::probe(&scene, &bytes, &agent, &trainer.probe)
+        .with_context(|| format!("probing {} on {}", ck.display(), track.display()))?;
+    eprintln!(
+        "[up] checkpoint {} (step {}): counterfactual probe on {} = {:.3}",
+        ck.display(),
+        loaded.meta.step,
+        track.display(),
+        probe.rank_correlation
+    );
+    loaded.meta = loaded.meta.clone().with_probe(Some((loaded.meta.step, probe.rank_correlation)));
+    let (vs, _) = loaded.build()?;
+    let path = out.join("start.safetensors");
+    checkpoint::save(&path, &vs, &loaded.config, &loaded.meta)?;
+    Ok(path)
+}
+
+/// The live progress line until a signal, the simulator's end, or a service's death.
+fn watch(ipc: &IpcConfig, procs: &mut [Proc], shutdown: &Shutdown) -> anyhow::Result<()> {
+    let node = create_node(ipc, "mta-up")?;
+    let obs = Receiver::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP)?;
+    let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP)?;
+    let tty = std::io::stderr().is_terminal();
+    let start = Instant::now();
+    let mut last_print = Instant::now();
+    let (mut last_obs, mut last_cmd) = (None::<Observation>, None::<Command>);
+    let mut episodes_laps = (0u8, 0u32, 0u32); // episode, laps before it, laps in it
+    loop {
+        if shutdown.requested() {
+            return Ok(());
+        }
+        for p in procs.iter_mut() {
+            if !p.is_running() {
+                let sim_done = p.name == "mta-simulator";
+                return if sim_done {
+                    Ok(())
+                } else {
+                    Err(anyhow::anyhow!("{} exited on its own; see {}", p.name, p.log.display()))
+                };
+            }
+        }
+        obs.wait(Duration::from_millis(200))?;
+        if let Some(o) = obs.latest()? {
+            if o.episode != episodes_laps.0 {
+                episodes_laps = (o.episode, episodes_laps.1 + episodes_laps.2, 0);
+            }
+            episodes_laps.2 = o.truth.laps;
+            last_obs = Some(o);
+        }
+        if let Some(c) = cmds.latest()? {
+            last_cmd = Some(c);
+        }
+        if last_print.elapsed() >= Duration::from_secs(if tty { 1 } else { 10 }) {
+            last_print = Instant::now();
+            let line = progress(last_obs.as_ref(), last_cmd.as_ref(), episodes_laps.1 + episodes_laps.2, start.elapsed());
+            if tty {
+                eprint!("\r{line:<120}");
+                let _ = std::io::stderr().flush();
+            } else {
+                eprintln!("[up] {line}");
+            }
+        }
+    }
+}
+
+fn progress(o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) -> String {
+    let Some(o) = o else {
+        return format!("{:.0} s: waiting for the simulator", wall.as_secs_f64());
+    };
+    let driver = c
+        .and_then(|c| CommandSource::from_u32(c.source))
+        .map_or("-", CommandSource::name);
+    let ratio = c.map(|c| c.model_error_ratio).filter(|v| v.is_finite());
+    let probe = c.map(|c| c.probe).filter(|v| v.is_finite());
+    let fmt = |v: Option<f32>| v.map_or("-".into(), |v| format!("{v:.2}"));
+    let predictor_ms = c.map_or(0.0, |c| c.compute_ns as f64 / 1e6);
+    format!(
+        "step {} ({:.0} s sim, {:.0} s wall) | laps {laps} | driver {driver} | model/copy-last {} | probe {} | predictor {predictor_ms:.2} ms",
+        o.step,
+        (o.step as f64) * mtanet_ipc::CONTROL_PERIOD_S,
+        wall.as_secs_f64(),
+        fmt(ratio),
+        fmt(probe),
+    )
+}
