@@ -71,20 +71,40 @@ pub struct LineFeature {
     pub mass: Vec<f32>,
 }
 
+/// Window (standard deviation, half widths) around the image centre in which the nearest row
+/// looks for the line, and around the row below's position in which each farther row does.
+const NEAR_WINDOW: f32 = 0.7;
+const TRACK_WINDOW: f32 = 0.35;
+
 impl LineFeature {
+    /// Follows the line from the nearest row (the bottom) to the farthest: each row takes the
+    /// soft centroid of line-ness under a Gaussian window around where the row below saw it, so
+    /// a second piece of line in view (the far side of a hairpin or notch) does not pull the
+    /// position between the two.
     pub fn of(frame: &[f32], shape: FrameShape, contrast: &Contrast) -> Self {
         let half = shape.width as f32 / 2.0;
-        let mut position = Vec::with_capacity(shape.height);
-        let mut mass = Vec::with_capacity(shape.height);
-        for row in frame.chunks_exact(shape.width).take(shape.height) {
+        let mut position = vec![0.0; shape.height];
+        let mut mass = vec![0.0; shape.height];
+        let (mut centre, mut window) = (0.0f32, NEAR_WINDOW);
+        for r in (0..shape.height).rev() {
+            let row = &frame[r * shape.width..(r + 1) * shape.width];
             let (mut m, mut moment) = (0.0f32, 0.0f32);
             for (c, &g) in row.iter().enumerate() {
-                let d = contrast.lineness(g);
+                let x = (c as f32 + 0.5 - half) / half;
+                let d = contrast.lineness(g) * (-(x - centre).powi(2) / (2.0 * window * window)).exp();
                 m += d;
-                moment += d * ((c as f32 + 0.5 - half) / half);
+                moment += d * x;
             }
-            position.push(if m > 1e-6 { moment / m } else { 0.0 });
-            mass.push(m);
+            if m > 0.25 {
+                position[r] = moment / m;
+                centre = position[r];
+                window = TRACK_WINDOW;
+            } else {
+                // No line here: farther rows look around the last place it was seen, more widely.
+                position[r] = 0.0;
+                window = (window * 1.5).min(NEAR_WINDOW);
+            }
+            mass[r] = m;
         }
         Self { position, mass }
     }
@@ -251,7 +271,8 @@ pub(crate) mod tests {
         assert!((pref.contrast.amplitude - 0.75).abs() < 1e-6);
         for r in 0..8 {
             assert!(pref.position_mean[r].abs() < 1e-6, "centred line: {pref:?}");
-            assert!((pref.mass_mean[r] - 4.0).abs() < 1e-5);
+            // 4 pixels of line, seen through the tracking window.
+            assert!((3.0..=4.0).contains(&pref.mass_mean[r]), "{pref:?}");
         }
     }
 
@@ -268,8 +289,24 @@ pub(crate) mod tests {
     fn the_feature_follows_the_line() {
         let pref = learnt();
         let left = LineFeature::of(&line_frame(3.0, 0.0), FrameShape::CAR, &pref.contrast);
-        assert!((left.position[4] + 0.5).abs() < 1e-5, "{left:?}");
+        assert!((left.position[4] + 0.5).abs() < 0.05, "{left:?}");
         let bare = LineFeature::of(&[0.85; 96], FrameShape::CAR, &pref.contrast);
         assert!(bare.mass.iter().all(|m| *m == 0.0));
+    }
+
+    #[test]
+    fn a_second_piece_of_line_far_ahead_does_not_pull_the_position() {
+        let pref = learnt();
+        // The line runs straight up the middle; the far three rows also show another piece of
+        // line at the left edge (the far side of a notch).
+        let mut f = line_frame(6.0, 0.0);
+        for r in 0..3 {
+            f[r * 12] = 0.1;
+            f[r * 12 + 1] = 0.1;
+        }
+        let feat = LineFeature::of(&f, FrameShape::CAR, &pref.contrast);
+        for r in 0..8 {
+            assert!(feat.position[r].abs() < 0.05, "row {r} pulled aside: {feat:?}");
+        }
     }
 }

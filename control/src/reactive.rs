@@ -91,14 +91,15 @@ impl Default for ExplorationConfig {
     fn default() -> Self {
         Self {
             enabled: true,
-            segments_per_s: 0.5,
+            segments_per_s: 1.0,
             min_s: 0.1,
             max_s: 0.4,
             min_speed: 2.0,
             max_speed: 12.0,
-            // At most ~50 degrees of heading per segment: away from the line and back, never
-            // turned around.
-            max_turn: 4.0,
+            // At most ~75 degrees of heading per segment: away from the line and back (measured:
+            // more and stronger segments than 0.5/s at 4 rad/s gave a model whose probe was
+            // 0.89 instead of 0.58 after 3000 updates, and which drove other tracks).
+            max_turn: 6.0,
             seed: 0,
         }
     }
@@ -180,9 +181,9 @@ mod tests {
         };
         let (a, n) = run(&cfg);
         assert_eq!(a, run(&cfg).0, "same seed, same commands");
-        // 0.5 segments/s of mean 0.25 s: about 11% of the time (a little less: no overlap).
+        // 1 segment/s of mean 0.25 s: about 20% of the time (a little less: no overlap).
         let share = n as f64 / 20_000.0;
-        assert!((0.07..0.15).contains(&share), "share {share}");
+        assert!((0.15..0.25).contains(&share), "share {share}");
         let other = ExplorationConfig { seed: 1, ..cfg.clone() };
         assert_ne!(a, run(&other).0);
         let off = ExplorationConfig { enabled: false, ..cfg };

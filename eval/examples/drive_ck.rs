@@ -30,6 +30,6 @@ fn main() -> anyhow::Result<()> {
     let mut ag = Agent::new(&cfg, &ReactiveConfig::default(), &ExplorationConfig { enabled: explore, ..Default::default() }, FrameShape::CAR, 0.02);
     let mut plans = Inline::new(Planner::new(&cfg.planner)?, Imagined::from_bytes(&bytes)?);
     let r = drive(&mut w, &mut ag, &mut LiveSees(live), &mut plans, &DriveConfig { max_steps: steps, trace_every: 0, ..Default::default() })?;
-    println!("{track}: laps {} ai_laps {} lost {} fallbacks {} lat_r {:.4} lat_ai {:.4} ai_steps {} plan {:.1}ms", r.laps, r.laps_under_active_inference, r.lost_events, r.agent.fallbacks, r.lateral_reactive_m.unwrap_or(f64::NAN), r.lateral_active_inference_m.unwrap_or(f64::NAN), r.agent.active_inference_steps, r.plan_ms.p50);
+    println!("{track}: laps {} ai_laps {} lost {} fallbacks {} lat_r {:.4} lat_ai {:.4} ai_steps {} plan {:.1}ms {:?}", r.laps, r.laps_under_active_inference, r.lost_events, r.agent.fallbacks, r.lateral_reactive_m.unwrap_or(f64::NAN), r.lateral_active_inference_m.unwrap_or(f64::NAN), r.agent.active_inference_steps, r.plan_ms.p50, r.agent);
     Ok(())
 }

@@ -25,5 +25,7 @@ pub struct ReplayChunk {
     pub actions: [[f32; ACTION_DIM]; REPLAY_STEPS],
     /// Who decided `actions[t]` (a `CommandSource` as u8), e.g. to count exploratory data.
     pub sources: [u8; REPLAY_STEPS],
-    pub _reserved: [u8; 4],
+    /// Lockstep pacing in force: trainer updates per 1000 steps (0: none, e.g. real time). The
+    /// trainer keeps to it from its side too, so the rate holds exactly in both directions.
+    pub pace: f32,
 }

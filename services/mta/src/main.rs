@@ -1,6 +1,7 @@
 //! `mta`: the operator CLI.
 
 mod canvas;
+mod evaluate;
 mod figures;
 mod soak;
 mod status;
@@ -39,6 +40,10 @@ enum Cmd {
     Up(up::UpArgs),
     /// Write a run folder's report.json and pictures from its summaries and trace.
     Report(report::ReportArgs),
+    /// Counterfactual probe of a checkpoint on a track: does it rank commands like the world?
+    Probe(evaluate::ProbeArgs),
+    /// Drive a track in-process by active inference, through a checkpoint or the MuJoCo oracle.
+    Drive(evaluate::DriveArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -51,5 +56,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Soak(a) => soak::run(a),
         Cmd::Up(a) => up::run(a),
         Cmd::Report(a) => report::run(a),
+        Cmd::Probe(a) => evaluate::probe(a),
+        Cmd::Drive(a) => evaluate::drive_cmd(a),
     }
 }

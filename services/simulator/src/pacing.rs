@@ -47,6 +47,11 @@ impl Pace {
         }
     }
 
+    /// The rate in force (0 when not pacing).
+    pub fn rate(&self) -> f32 {
+        if self.enabled { self.rate as f32 } else { 0.0 }
+    }
+
     fn refresh(&mut self, rx: &Receiver<TrainerStatus>) -> anyhow::Result<()> {
         if let Some(s) = rx.latest()? {
             self.latest = Some(s);

@@ -203,6 +203,7 @@ pub fn run(
             t.record(step, episode, &sensors.truth, source)?;
         }
         if cfg.replay {
+            chunk.pace = pace.rate();
             chunk.push(&ports.replay, step, episode, &sensors, applied, applied_source)?;
         }
         if world.step(cmd) {
@@ -402,6 +403,8 @@ fn await_command(
 struct ChunkBuilder {
     sample: Option<Loaned<ReplayChunk>>,
     sent: u64,
+    /// Written into each chunk (see `ReplayChunk::pace`).
+    pace: f32,
 }
 
 impl ChunkBuilder {
@@ -433,6 +436,7 @@ impl ChunkBuilder {
         c.actions[i] = applied;
         c.sources[i] = source as u8;
         c.len += 1;
+        c.pace = self.pace;
         if c.len as usize == REPLAY_STEPS {
             c.stamp_ns = stamp::monotonic_ns();
             let full = self.sample.take().expect("a chunk is being filled");

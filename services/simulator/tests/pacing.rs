@@ -57,7 +57,7 @@ fn the_simulator_waits_for_the_trainers_updates_and_runs_free_without_it() {
     });
     // Answers every observation; returns the last step seen once none came for `quiet`.
     let mut last = None::<u64>;
-    let mut answer_until_quiet = |quiet: Duration, last: &mut Option<u64>| {
+    let answer_until_quiet = |quiet: Duration, last: &mut Option<u64>| {
         let mut since = Instant::now();
         while since.elapsed() < quiet {
             send_status(updates.get());

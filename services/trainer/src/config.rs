@@ -17,6 +17,9 @@ pub struct TrainerConfig {
     /// Model steps per training window (each `model.frame_skip` control steps), cut from
     /// consecutive chunks of one episode.
     pub sequence_steps: usize,
+    /// Mirror half the training windows left-right (images flipped, wheels swapped): the car
+    /// is symmetric, so a track that turns one way also teaches the other.
+    pub mirror: bool,
     /// Run the counterfactual probe every this many updates (0: never; the predictor then
     /// needs `min_probe = -1` to trust the model).
     pub probe_every_updates: u64,
@@ -44,6 +47,7 @@ impl Default for TrainerConfig {
             replay_capacity: 4096,
             min_sequences: 64,
             sequence_steps: 12,
+            mirror: true,
             probe_every_updates: 250,
             publish_every_updates: 50,
             checkpoint_dir: None,

@@ -22,6 +22,7 @@ pub struct Learner {
     rng: ChaCha8Rng,
     min_sequences: usize,
     sequence_steps: usize,
+    mirror: bool,
     publish_every: u64,
     /// The counterfactual probe, run every so many updates (none: never).
     prober: Option<Prober>,
@@ -62,6 +63,7 @@ impl Learner {
             rng: ChaCha8Rng::seed_from_u64(cfg.train.seed),
             min_sequences: cfg.min_sequences.max(1),
             sequence_steps: cfg.sequence_steps.max(2),
+            mirror: cfg.mirror,
             publish_every: cfg.publish_every_updates.max(1),
             prober: None,
             checkpoint,
@@ -113,7 +115,7 @@ impl Learner {
     ) -> anyhow::Result<Option<UpdateStats>> {
         let b = self.trainer.train_cfg.batch_size.max(1) as usize;
         let skip = self.frame_skip();
-        let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip) else {
+        let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip, self.mirror) else {
             return Ok(None);
         };
         let (images, actions) = to_tensors(&batch);

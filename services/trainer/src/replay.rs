@@ -26,6 +26,8 @@ pub struct ReplayBuffer {
     steps_by_source: [u64; 6],
     lost: u64,
     next_seq: Option<u64>,
+    /// The pacing of the newest chunk (`ReplayChunk::pace`).
+    pace: f32,
 }
 
 /// One training batch: `[B, T, H, W]` frames and `[B, T, A]` actions, flattened.
@@ -46,7 +48,13 @@ impl ReplayBuffer {
             steps_by_source: [0; 6],
             lost: 0,
             next_seq: None,
+            pace: 0.0,
         }
+    }
+
+    /// Lockstep pacing the simulator runs at (updates per 1000 steps; 0: none).
+    pub fn pace(&self) -> f32 {
+        self.pace
     }
 
     /// Copies a chunk in; counts chunks lost in transport by the gap in sequence numbers.
@@ -58,6 +66,7 @@ impl ReplayBuffer {
         }
         self.next_seq = Some(c.seq + 1);
         self.received += 1;
+        self.pace = if c.pace.is_finite() { c.pace.max(0.0) } else { 0.0 };
         self.steps_received += u64::from(c.len);
         let len = (c.len as usize).min(c.images.len());
         for &s in &c.sources[..len] {
@@ -138,8 +147,16 @@ impl ReplayBuffer {
     }
 
     /// A random batch of `batch` windows of `steps` model steps at `skip`; `None` when the
-    /// buffer holds no run long enough (after a bounded number of tries per window).
-    pub fn sample(&self, rng: &mut impl Rng, batch: usize, steps: usize, skip: usize) -> Option<Batch> {
+    /// buffer holds no run long enough (after a bounded number of tries per window). With
+    /// `mirror`, each window is mirrored left-right with probability 1/2 (see [`mirror`]).
+    pub fn sample(
+        &self,
+        rng: &mut impl Rng,
+        batch: usize,
+        steps: usize,
+        skip: usize,
+        mirror_windows: bool,
+    ) -> Option<Batch> {
         if self.chunks.is_empty() {
             return None;
         }
@@ -157,11 +174,29 @@ impl ReplayBuffer {
                 (self.chunks[c].images.len() > o && self.contiguous_from(c, o, span)).then_some((c, o))
             });
             let (c, o) = found?;
-            let (imgs, acts) = self.gather(c, o, span);
+            let (mut imgs, mut acts) = self.gather(c, o, span);
+            if mirror_windows && rng.random::<bool>() {
+                mirror(&mut imgs, &mut acts);
+            }
             // The window's first frame comes skip - 1 steps in, after the commands of its action.
             push_window(&imgs, &acts, skip - 1, skip, steps, &mut out.images, &mut out.actions);
         }
         Some(out)
+    }
+}
+
+/// The car is left-right symmetric (centred camera, symmetric sensors and wheels), so a drive
+/// seen in a mirror is a drive too: images flipped left-right, left and right wheel commands
+/// swapped. A track that turns only one way (the oval turns left) then also teaches what the
+/// other way looks like.
+pub fn mirror(images: &mut [[f32; IMAGE_PIXELS]], actions: &mut [[f32; ACTION_DIM]]) {
+    for img in images.iter_mut() {
+        for row in img.chunks_exact_mut(mtanet_ipc::IMAGE_WIDTH) {
+            row.reverse();
+        }
+    }
+    for a in actions.iter_mut() {
+        a.swap(0, 1);
     }
 }
 
@@ -204,7 +239,7 @@ mod tests {
             b.push(&chunk(seq, first, ep));
         }
         // 4 model steps at skip 5 need 5 - 1 + 3 * 5 + 1 = 20 steps: fits in either episode.
-        let batch = b.sample(&mut rng, 32, 4, 5).unwrap();
+        let batch = b.sample(&mut rng, 32, 4, 5, false).unwrap();
         for w in batch.images.chunks(4 * IMAGE_PIXELS) {
             let f: Vec<f32> = w.chunks(IMAGE_PIXELS).map(|p| p[0]).collect();
             assert!(f.windows(2).all(|p| p[1] - p[0] == 5.0), "frames 5 steps apart: {f:?}");
@@ -216,6 +251,24 @@ mod tests {
         assert_eq!(a0, f0 - 2.0, "mean of steps f-4..=f");
         // 12 model steps (60 steps) fit only in episode 0 from its very start: never found in
         // episode 1, and all windows come from episode 0.
-        assert!(b.sample(&mut rng, 4, 13, 5).is_none(), "65 steps exist nowhere");
+        assert!(b.sample(&mut rng, 4, 13, 5, false).is_none(), "65 steps exist nowhere");
+    }
+
+    #[test]
+    fn a_mirrored_window_flips_the_images_and_swaps_the_wheels() {
+        let mut img = [[0.0f32; IMAGE_PIXELS]; 1];
+        img[0][0] = 1.0; // top row, far left
+        img[0][13] = 2.0; // second row, second from the left
+        let mut act = [[3.0f32, 5.0]];
+        mirror(&mut img, &mut act);
+        assert_eq!((img[0][11], img[0][22], img[0][0]), (1.0, 2.0, 0.0));
+        assert_eq!(act[0], [5.0, 3.0], "a left turn becomes a right turn");
+        // About half of the windows of a batch come mirrored.
+        let mut b = ReplayBuffer::new(4);
+        b.push(&chunk(0, 0, 0));
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let batch = b.sample(&mut rng, 200, 2, 1, true).unwrap();
+        let swapped = batch.actions.chunks(4).filter(|a| a[1] != 0.0).count();
+        assert!((60..140).contains(&swapped), "{swapped} of 200 mirrored");
     }
 }

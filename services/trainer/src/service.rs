@@ -73,6 +73,29 @@ fn publish_status(ports: &Ports, learner: &Learner, buffer: &ReplayBuffer, sessi
     Ok(())
 }
 
+/// Lockstep pacing from the trainer's side: the simulator waits when it is ahead of the rate in
+/// its chunks; the trainer waits for steps when it is ahead, so the rate holds both ways.
+#[derive(Default)]
+struct KeepPace {
+    start: Option<(u64, u64)>,
+}
+
+impl KeepPace {
+    fn may_update(&mut self, buffer: &ReplayBuffer, session: u64) -> bool {
+        let rate = f64::from(buffer.pace());
+        if rate <= 0.0 {
+            self.start = None;
+            return true;
+        }
+        let (s0, u0) = *self.start.get_or_insert((buffer.steps_received(), session));
+        // Slack: chunks arrive 20 steps at a time and the simulator's own slack is one update,
+        // so being this far ahead never stops both sides at once.
+        let slack = 2.0 + 40.0 * rate / 1000.0;
+        let allowed = buffer.steps_received().saturating_sub(s0) as f64 * rate / 1000.0 + slack;
+        (session.saturating_sub(u0) as f64) < allowed
+    }
+}
+
 /// Runs until a signal. `learner` is built by the caller (with or without a probe).
 pub fn run(ports: &Ports, cfg: &TrainerConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
     run_with(ports, cfg, Learner::new(cfg)?, shutdown)
@@ -91,6 +114,7 @@ pub fn run_with(
         learner.publish(&ports.weights)?;
     }
     let mut session = 0u64;
+    let mut keep_pace = KeepPace::default();
     publish_status(ports, &learner, &buffer, session, false)?;
     tracing::info!(
         min_sequences = cfg.min_sequences,
@@ -101,8 +125,10 @@ pub fn run_with(
     let mut last_log = Instant::now();
     let mut failure = None;
     while !shutdown.requested() && failure.is_none() {
-        // With data to learn from, only look for new chunks and go on training; otherwise block.
-        let training = learner.ready(&buffer);
+        // With data to learn from, only look for new chunks and go on training; otherwise block
+        // (also while ahead of a lockstep simulator's pace).
+        let ready = learner.ready(&buffer);
+        let training = ready && keep_pace.may_update(&buffer, session);
         let timeout = if training {
             Duration::ZERO
         } else {
@@ -128,6 +154,8 @@ pub fn run_with(
                 update_time.record_ns(t0.elapsed().as_nanos() as u64);
                 session += 1;
             }
+            publish_status(ports, &learner, &buffer, session, true)?;
+        } else if ready {
             publish_status(ports, &learner, &buffer, session, true)?;
         }
         ports.weights.serve_new_subscribers()?;

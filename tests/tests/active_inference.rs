@@ -1,0 +1,53 @@
+//! Active inference drives the car through the learned model, with the real processes: `mta up`
+//! starts the predictor and the simulator (no trainer) from the committed checkpoint made by a
+//! from-scratch lockstep run on the oval (tests/data/README.md), in lockstep for 60 simulated
+//! seconds, and the run's report must show a lap driven by active inference from start to end.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use mtanet_mta::stack::{bin, nodes, remove_namespace_files, unique_namespace};
+
+fn checkpoint() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors")
+}
+
+#[test]
+fn active_inference_drives_a_lap_through_the_learned_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let ns = unique_namespace("ai");
+    let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
+    let status = Command::new(bin("mta"))
+        .args(["up", "--lockstep", "--sim-seconds", "60", "--no-learning", "--namespace", &ns])
+        .arg("--config")
+        .arg(&config)
+        .arg("--checkpoint")
+        .arg(checkpoint())
+        .arg("--out")
+        .arg(&out)
+        .stderr(std::fs::File::create(dir.path().join("up.log")).unwrap())
+        .status()
+        .unwrap();
+    let log = std::fs::read_to_string(dir.path().join("up.log")).unwrap_or_default();
+    assert!(status.success(), "mta up failed: {status}\n{log}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let get = |path: &str| report.pointer(path).cloned().unwrap_or_default();
+    assert_eq!(get("/steps"), 3000, "{report:#}");
+    assert!(
+        get("/laps/completed_under_active_inference").as_u64() >= Some(1),
+        "no lap under active inference:\n{report:#}"
+    );
+    assert!(get("/control/active_inference_steps").as_u64() > Some(1500), "{report:#}");
+    assert_eq!(get("/control/fallbacks"), 0, "{report:#}");
+    assert_eq!(get("/laps/lost_line_events"), 0, "{report:#}");
+    // Planning kept up: every plan was taken up at its segment.
+    assert_eq!(get("/control/late_plans"), 0, "{report:#}");
+    for f in ["lap_trace.png", "latency.png", "figure.png", "model.safetensors", "trace.csv"] {
+        assert!(out.join(f).exists(), "{f} missing from the run folder");
+    }
+    let c = nodes(&ns);
+    assert!(c.alive.is_empty() && c.dead.is_empty(), "nodes left behind: {c:?}");
+    remove_namespace_files(&ns);
+}
