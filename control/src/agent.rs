@@ -75,7 +75,7 @@ impl Default for AgentConfig {
             enabled: true,
             trust_ratio: 0.8,
             trust_after_steps: 25,
-            min_probe: 0.6,
+            min_probe: 0.7,
             distrust_ratio: 1.5,
             distrust_after_steps: 50,
             fallback_after_s: 0.5,
@@ -340,8 +340,10 @@ impl Agent {
                 }
                 Mode::ActiveInference => plan = self.take_plan(t, plans),
                 Mode::Reactive | Mode::Fallback => {
-                    let may_resume = self.mode == Mode::Reactive
-                        || (self.found_ticks >= self.ticks(self.cfg.resume_after_s) && t.line[1]);
+                    // Take over only with the car on the line (not in the middle of an
+                    // exploration segment or a search).
+                    let may_resume =
+                        self.found_ticks >= self.ticks(self.cfg.resume_after_s) && t.line[1];
                     if may_resume && self.cost.is_some() && self.trusted(&health) {
                         if !plans.idle() {
                             // A plan still out from before the fallback: its segment is past.
@@ -587,12 +589,12 @@ mod tests {
         let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
         let mut a = agent(&cfg());
         let mut applied = [0.0; 2];
-        for _ in 0..12 {
+        for _ in 0..30 {
             let d = a.tick(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
             assert_eq!(d.driver, Driver::Reactive, "an untrusted model never drives");
             applied = d.wheels;
         }
-        assert_eq!(model.observed.len(), 4, "a model step every 3 control steps");
+        assert_eq!(model.observed.len(), 10, "a model step every 3 control steps");
         assert_eq!(model.observed[1], [8.0, 8.0], "the mean command of its segment");
         model.health = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
         let mut segments: Vec<Vec<Wheels>> = Vec::new();
@@ -622,7 +624,7 @@ mod tests {
         let mut model = Toy { skip: 2, health: trusted, observed: Vec::new() };
         let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
         let mut a = agent(&cfg());
-        for _ in 0..20 {
+        for _ in 0..30 {
             a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(a.driving_by_active_inference());
@@ -662,7 +664,7 @@ mod tests {
         let mut a = agent(&cfg());
         let mut never = Never(false);
         let mut last = [0.0; 2];
-        for _ in 0..20 {
+        for _ in 0..40 {
             let d = a.tick(&Tick { lockstep: false, ..tick(&frame, CENTRED, last) }, &mut model, &mut never).unwrap();
             last = d.wheels;
         }
@@ -673,13 +675,39 @@ mod tests {
     }
 
     #[test]
+    fn takes_over_only_with_the_car_on_the_line() {
+        let frame = line_frame(6.0, 0.0);
+        let trusted = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
+        let mut model = Toy { skip: 1, health: trusted, observed: Vec::new() };
+        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
+        let mut a = agent(&cfg());
+        for _ in 0..10 {
+            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        }
+        // Trusted and a preference learnt, but the line is gone (an exploration segment).
+        let floor = [0.85f32; 96];
+        for _ in 0..40 {
+            let d = a.tick(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
+            assert_ne!(d.driver, Driver::ActiveInference, "never taking over off the line");
+        }
+        let mut k = 0;
+        while !a.driving_by_active_inference() {
+            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            k += 1;
+            assert!(k < 30, "takes over once the line has been found for 0.5 s");
+        }
+        assert_eq!(k, 25);
+        assert_eq!(a.stats.fallbacks, 0);
+    }
+
+    #[test]
     fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
         let frame = line_frame(6.0, 0.0);
         let low_probe = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.2) };
         let mut model = Toy { skip: 1, health: low_probe, observed: Vec::new() };
         let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
         let mut a = agent(&cfg());
-        for _ in 0..20 {
+        for _ in 0..30 {
             a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(!a.driving_by_active_inference(), "a probe below min_probe is not trusted");

@@ -144,8 +144,8 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             "observation age at answer (pred.)",
             &pr_s["observation_age"],
         ),
-        ("policy compute (predictor)", &pr_s["compute"]),
-        ("world model after cmd (pred.)", &pr_s["world_update"]),
+        ("decision compute (predictor)", &pr_s["compute"]),
+        ("plan, on its thread (predictor)", &pr_s["plan"]),
     ] {
         let l = lat(v);
         println!(
