@@ -190,22 +190,32 @@ impl Strip<'_> {
     }
 }
 
-/// Black ASCII text with its top-left corner at `(y, x)`; other characters draw as blanks.
-fn draw_text(px: &mut [u8], width: usize, (y, x): (usize, usize), text: &str) {
-    for (i, ch) in text.chars().enumerate() {
+/// The pixels `(x, y)` of ASCII `text` in font8x8 glyphs scaled by `scale`, from the text's
+/// top-left corner; other characters draw as blanks. Shared with the run pictures of `mta`.
+pub fn glyph_pixels(text: &str, scale: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+    text.chars().enumerate().flat_map(move |(i, ch)| {
         let glyph = font8x8::legacy::BASIC_LEGACY
             .get(ch as usize)
             .copied()
             .unwrap_or_default();
-        for (gy, bits) in glyph.iter().enumerate() {
-            for gx in (0..8).filter(|gx| bits & (1 << gx) != 0) {
-                for (sy, sx) in (0..TEXT_SCALE).flat_map(|a| (0..TEXT_SCALE).map(move |b| (a, b))) {
-                    let (py, pxx) = (y + gy * TEXT_SCALE + sy, x + (i * 8 + gx) * TEXT_SCALE + sx);
-                    if let Some(p) = px.get_mut(py * width + pxx).filter(|_| pxx < width) {
-                        *p = 0;
-                    }
-                }
-            }
+        (0..8usize).flat_map(move |gy| {
+            (0..8usize)
+                .filter(move |gx| glyph[gy] & (1 << gx) != 0)
+                .flat_map(move |gx| {
+                    (0..scale * scale).map(move |k| {
+                        ((i * 8 + gx) * scale + k % scale, gy * scale + k / scale)
+                    })
+                })
+        })
+    })
+}
+
+/// Black ASCII text with its top-left corner at `(y, x)`.
+fn draw_text(px: &mut [u8], width: usize, (y, x): (usize, usize), text: &str) {
+    for (dx, dy) in glyph_pixels(text, TEXT_SCALE) {
+        let (py, pxx) = (y + dy, x + dx);
+        if let Some(p) = px.get_mut(py * width + pxx).filter(|_| pxx < width) {
+            *p = 0;
         }
     }
 }

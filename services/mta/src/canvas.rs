@@ -60,21 +60,8 @@ impl Canvas {
 
     /// ASCII text, 8 px glyphs scaled by `scale`, top-left at (x, y).
     pub fn text(&mut self, x: i64, y: i64, text: &str, scale: i64, c: Rgb) {
-        for (i, ch) in text.chars().enumerate() {
-            let glyph = font8x8::legacy::BASIC_LEGACY
-                .get(ch as usize)
-                .copied()
-                .unwrap_or_default();
-            for (gy, bits) in glyph.iter().enumerate() {
-                for gx in (0..8).filter(|gx| bits & (1 << gx) != 0) {
-                    for sy in 0..scale {
-                        for sx in 0..scale {
-                            let px = x + (i as i64 * 8 + gx as i64) * scale + sx;
-                            self.set(px, y + gy as i64 * scale + sy, c);
-                        }
-                    }
-                }
-            }
+        for (dx, dy) in mtanet_models::figure::glyph_pixels(text, scale.max(1) as usize) {
+            self.set(x + dx as i64, y + dy as i64, c);
         }
     }
 
