@@ -34,6 +34,9 @@ pub enum ConfigError {
     },
 }
 
+/// The top-level sections a stack config may have.
+pub const SECTIONS: [&str; 5] = ["ipc", "simulator", "predictor", "trainer", "stack"];
+
 /// A parsed config file (or the empty one when no file was given).
 #[derive(Debug, Clone, Default)]
 pub struct ConfigFile {
@@ -53,6 +56,8 @@ impl ConfigFile {
         Self::parse(&text, path)
     }
 
+    /// Parses a stack config; a top-level key that is not one of [`SECTIONS`] (a misspelt
+    /// `[trainr]`, say) is an error naming it, not silently ignored.
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
         let table = text
             .parse::<toml::Table>()
@@ -60,6 +65,13 @@ impl ConfigFile {
                 path: path.into(),
                 message: e.to_string(),
             })?;
+        if let Some(unknown) = table.keys().find(|k| !SECTIONS.contains(&k.as_str())) {
+            return Err(ConfigError::Section {
+                path: path.into(),
+                section: unknown.clone(),
+                message: format!("unknown section, expected one of {}", SECTIONS.join(", ")),
+            });
+        }
         Ok(Self {
             path: Some(path.into()),
             table,
@@ -106,7 +118,7 @@ mod tests {
 
     #[test]
     fn missing_section_gives_defaults() {
-        let f = ConfigFile::parse("[other]\nx = 1\n", Path::new("a.toml")).unwrap();
+        let f = ConfigFile::parse("[simulator]\nx = 1\n", Path::new("a.toml")).unwrap();
         assert_eq!(f.section::<IpcConfig>("ipc").unwrap(), IpcConfig::default());
     }
 
@@ -118,6 +130,20 @@ mod tests {
             msg.contains("stack.toml") && msg.contains("[ipc]") && msg.contains("namespce"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn a_misspelt_section_is_named_with_the_file() {
+        let msg = ConfigFile::parse("[trainr]\nnice = 5\n", Path::new("stack.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("stack.toml") && msg.contains("[trainr]") && msg.contains("unknown section"),
+            "{msg}"
+        );
+        let wrong_type = ConfigFile::parse("[ipc]\nnamespace = 5\n", Path::new("s.toml")).unwrap();
+        let msg = wrong_type.section::<IpcConfig>("ipc").unwrap_err().to_string();
+        assert!(msg.contains("s.toml") && msg.contains("[ipc]") && msg.contains("string"), "{msg}");
     }
 
     #[test]

@@ -14,6 +14,7 @@ pub mod node;
 pub mod ports;
 pub mod report;
 pub mod shutdown;
+pub mod stack;
 pub mod stamp;
 pub mod systemd;
 pub mod weights_topic;

@@ -1,5 +1,5 @@
 //! Node and WaitSet creation with the project's rules: iceoryx2's own signal handling off (it
-//! would overwrite signal-hook's handlers, see FACTS.md), dead nodes of crashed peers cleaned up
+//! would overwrite signal-hook's handlers, see docs/measurements.md), dead nodes of crashed peers cleaned up
 //! at start, and an iceoryx2 prefix per namespace so stacks on one host never see each other.
 
 use iceoryx2::config::Config;

@@ -2,7 +2,7 @@
 //!
 //! libtorch runs with one intra-op thread unless MTANET_BENCH_THREADS says otherwise: at 8x12
 //! every op is a few microseconds of dispatch, which threads cannot split, and on the 2 shared
-//! cores two threads collapse 5-50x whenever another process holds a core (FACTS.md).
+//! cores two threads collapse 5-50x whenever another process holds a core (docs/measurements.md).
 //! Optional: MTANET_BENCH_CONFIG=file.toml (model keys) to bench another size.
 
 use hdrhistogram::Histogram;

@@ -59,7 +59,7 @@ pub struct ModelConfig {
     /// Sigmoid or softmax weights over the generative units.
     pub action_weighting: ActionWeighting,
     /// Initial bias of each layer's Xhat conv. Positive so that relu(conv(R)) starts alive while
-    /// R is near 0 (FACTS.md: the layer-0 ReLU died and the loss stayed flat without it).
+    /// R is near 0 (docs/measurements.md: the layer-0 ReLU died and the loss stayed flat without it).
     pub xhat_bias: Vec<f64>,
     /// Loss weight of each layer's errors (PredNet "L_0": only layer 0).
     pub layer_loss_weights: Vec<f64>,

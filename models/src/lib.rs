@@ -10,7 +10,7 @@
 //! - Offline: `mta train` / `mta synth`, [`analysis::analyse`] for metrics, slowness and figure.
 //!
 //! libtorch should run with one intra-op thread (`tch::set_num_threads(1)`): on 2 shared cores
-//! two threads collapse 5-50x when another process holds a core (FACTS.md), and at 8x12 the ops
+//! two threads collapse 5-50x when another process holds a core (docs/measurements.md), and at 8x12 the ops
 //! are too small to gain from splitting.
 
 pub mod adam;

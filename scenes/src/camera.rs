@@ -1,6 +1,6 @@
 //! The 8x12 grayscale camera, by ray casting: one ray per pixel through the pixel centre, grey
 //! from the colour of the geom hit. The paper's V-REP vision sensor was this small, and rays cost
-//! 30-80 us an image where a headless OpenGL render costs 0.5-1 ms (FACTS.md).
+//! 30-80 us an image where a headless OpenGL render costs 0.5-1 ms (docs/measurements.md).
 
 use mujoco_rs::prelude::*;
 

@@ -1,3 +1,4 @@
 //! Library side of the `mta` CLI: what its subcommands share with the system tests.
 
 pub mod stack;
+pub mod supervisor;

@@ -71,6 +71,8 @@ pub struct Report {
     pub missed_commands: u64,
     pub trainer: serde_json::Value,
     pub replay: serde_json::Value,
+    /// Restarts of each process by the supervisor (`mta up`).
+    pub restarts: serde_json::Value,
 }
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<Option<T>> {
@@ -94,6 +96,7 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
         .with_context(|| format!("{} has no mta-simulator.json: the simulator did not finish", dir.display()))?;
     let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
     let tr: Option<TrainerSummary> = read_json(&dir.join("mta-trainer.json"))?;
+    let sup: Option<serde_json::Value> = read_json(&dir.join("supervisor.json"))?;
     let c = &sim.control;
     let steps = |k: &str| c.steps.get(k).copied().unwrap_or(0);
     let lat = |k: &str| c.lateral_mean_m.get(k).copied();
@@ -162,6 +165,7 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
             "dropped_chunks": tr.as_ref().map(|t| t.chunks_lost),
             "exploration_fraction": tr.as_ref().map(|t| t.exploration_fraction),
         }),
+        restarts: sup.map(|s| s["restarts"].clone()).unwrap_or_default(),
     };
     mtanet_ipc::report::write_json(&dir.join("report.json"), &report)?;
     if let Err(e) = lap_trace(dir, &info.track) {

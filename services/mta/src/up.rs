@@ -17,7 +17,9 @@ use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{Command, CommandSource, Observation, names};
 
 use crate::report::{self, RunInfo};
-use mtanet_mta::stack::{Proc, wait_for_alive};
+use mtanet_ipc::stack::StackConfig;
+use mtanet_mta::stack::wait_for_alive;
+use mtanet_mta::supervisor::{Event, Supervisor};
 
 #[derive(Debug, clap::Args)]
 pub struct UpArgs {
@@ -101,6 +103,8 @@ fn effective_config(args: &UpArgs, out: &Path) -> anyhow::Result<(PathBuf, PathB
     let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
     let _: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
     let _: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    let stack: StackConfig = file.section("stack")?;
+    stack.validate().map_err(|e| file.invalid("[stack]", e))?;
     Ok((path, ck_dir))
 }
 
@@ -140,60 +144,66 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     eprintln!("[up] run folder {}; config {}", out.display(), config.display());
 
     let arg = |p: &Path| p.to_string_lossy().into_owned();
-    let common = |name: &str| -> Vec<String> {
-        vec![
+    let stack: StackConfig = file.section("stack")?;
+    let mut sup = Supervisor::new(&out)?;
+    let mut order = Vec::new();
+    for spec in &stack.process {
+        if args.no_learning && spec.binary == "mta-trainer" {
+            continue;
+        }
+        let mut a = vec![
             "--config".into(),
             arg(&config),
             "--namespace".into(),
             ipc.namespace.clone(),
             "--summary".into(),
-            arg(&out.join(format!("{name}.json"))),
-        ]
-    };
-    let spawn = |name: &str, extra: Vec<String>| -> anyhow::Result<Proc> {
-        let mut a = common(name);
-        a.extend(extra);
-        let p = Proc::try_spawn_with(name, &a, &out, true)?;
-        eprintln!("[up] started {name} (pid {})", p.pid());
-        Ok(p)
-    };
-    let mut procs: Vec<Proc> = Vec::new();
-    if !args.no_learning {
-        procs.push(spawn("mta-trainer", vec!["--track".into(), arg(&track)])?);
+            arg(&out.join(format!("{}.json", spec.binary))),
+        ];
+        a.extend(spec.args.iter().cloned());
+        match spec.binary.as_str() {
+            "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
+            "mta-predictor" => {
+                if let (true, Some(ck)) = (args.no_learning, &start_ck) {
+                    a.extend(["--checkpoint".into(), arg(ck)]);
+                }
+            }
+            "mta-simulator" => {
+                a.extend(["--track".into(), arg(&track), "--trace".into(), arg(&out.join("trace.csv"))]);
+                if args.sim_seconds > 0.0 {
+                    let steps = (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
+                    a.extend(["--max-steps".into(), steps.to_string()]);
+                }
+            }
+            _ => {}
+        }
+        sup.add(spec, a)?;
+        order.push(spec.name.clone());
     }
-    let mut pred_args = Vec::new();
-    if let (true, Some(ck)) = (args.no_learning, &start_ck) {
-        pred_args = vec!["--checkpoint".into(), arg(ck)];
+    // In order, each one up (its iceoryx2 node alive) before the next: the simulator comes last
+    // and finds its peers connected.
+    for (k, name) in order.iter().enumerate() {
+        let pid = sup.start(name)?;
+        eprintln!("[up] started {name} (pid {pid})");
+        if k + 1 < order.len() && wait_for_alive(&ipc.namespace, k + 1, Duration::from_secs(60)).alive.len() < k + 1 {
+            sup.stop_all(Duration::from_secs(20));
+            bail!("{name} did not come up; see {}", sup.log_path(&stack.process[k].binary).display());
+        }
     }
-    procs.push(spawn("mta-predictor", pred_args)?);
-    if wait_for_alive(&ipc.namespace, procs.len(), Duration::from_secs(60)).alive.len() < procs.len() {
-        bail!("the services did not come up; see the logs in {}", out.display());
-    }
-    let mut sim_args = vec!["--track".into(), arg(&track), "--trace".into(), arg(&out.join("trace.csv"))];
-    if args.sim_seconds > 0.0 {
-        let steps = (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
-        sim_args.extend(["--max-steps".into(), steps.to_string()]);
-    }
-    procs.push(spawn("mta-simulator", sim_args)?);
 
-    let outcome = watch(&ipc, &mut procs, &shutdown);
+    let outcome = watch(&ipc, &mut sup, &shutdown);
     if let Some(line) = &outcome.as_ref().err() {
         eprintln!("\n[up] {line:#}");
     }
     eprintln!("\n[up] stopping");
-    for p in procs.iter_mut().rev() {
-        if p.is_running() {
-            p.signal(libc::SIGTERM);
-        }
-    }
     let mut failed = Vec::new();
-    for p in procs.iter_mut() {
-        match p.try_wait_for(Duration::from_secs(60)) {
-            Some(s) if s.success() => {}
-            Some(s) => failed.push(format!("{} exited with {s}", p.name)),
-            None => failed.push(format!("{} did not stop within 60 s", p.name)),
+    for (name, how) in sup.stop_all(Duration::from_secs(60)) {
+        match how.as_deref() {
+            Some("exit code 0") => {}
+            Some(other) => failed.push(format!("{name} ended with {other}")),
+            None => failed.push(format!("{name} did not stop within 60 s")),
         }
     }
+    mtanet_ipc::report::write_json(&out.join("supervisor.json"), &serde_json::json!({ "restarts": sup.restarts() }))?;
     let latest = ck_dir.join("latest.safetensors");
     if latest.exists() {
         std::fs::copy(&latest, out.join("model.safetensors"))?;
@@ -245,8 +255,9 @@ fn probed_copy(ck: &Path, file: &ConfigFile, track: &Path, out: &Path) -> anyhow
     Ok(path)
 }
 
-/// The live progress line until a signal, the simulator's end, or a service's death.
-fn watch(ipc: &IpcConfig, procs: &mut [Proc], shutdown: &Shutdown) -> anyhow::Result<()> {
+/// The live progress line, restarting failed processes, until a signal, the simulator's end,
+/// or a process that failed more often than its restart policy allows.
+fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = create_node(ipc, "mta-up")?;
     let obs = Receiver::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP)?;
     let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP)?;
@@ -259,17 +270,22 @@ fn watch(ipc: &IpcConfig, procs: &mut [Proc], shutdown: &Shutdown) -> anyhow::Re
         if shutdown.requested() {
             return Ok(());
         }
-        for p in procs.iter_mut() {
-            if !p.is_running() {
-                let sim_done = p.name == "mta-simulator";
-                return if sim_done {
-                    Ok(())
-                } else {
-                    Err(anyhow::anyhow!("{} exited on its own; see {}", p.name, p.log.display()))
-                };
+        for e in sup.poll()? {
+            match e {
+                Event::Done { name } if name == "simulator" => return Ok(()),
+                Event::Done { name } => bail!("{name} exited on its own"),
+                Event::GaveUp { name, status } => {
+                    bail!("{name} failed ({status}) more often than its restart policy allows")
+                }
+                Event::Failed { name, status, restart_in } => {
+                    eprintln!("\n[up] {name} failed ({status}): restarting in {:.1} s", restart_in.as_secs_f64())
+                }
+                Event::Restarted { name, pid, restarts } => {
+                    eprintln!("[up] restarted {name} (pid {pid}, restart {restarts})")
+                }
             }
         }
-        obs.wait(Duration::from_millis(200))?;
+        obs.wait(Duration::from_millis(100))?;
         if let Some(o) = obs.latest()? {
             if o.episode != episodes_laps.0 {
                 episodes_laps = (o.episode, episodes_laps.1 + episodes_laps.2, 0);
@@ -282,7 +298,11 @@ fn watch(ipc: &IpcConfig, procs: &mut [Proc], shutdown: &Shutdown) -> anyhow::Re
         }
         if last_print.elapsed() >= Duration::from_secs(if tty { 1 } else { 10 }) {
             last_print = Instant::now();
-            let line = progress(last_obs.as_ref(), last_cmd.as_ref(), episodes_laps.1 + episodes_laps.2, start.elapsed());
+            let restarts: u32 = sup.restarts().values().sum();
+            let mut line = progress(last_obs.as_ref(), last_cmd.as_ref(), episodes_laps.1 + episodes_laps.2, start.elapsed());
+            if restarts > 0 {
+                line.push_str(&format!(" | restarts {restarts}"));
+            }
             if tty {
                 eprint!("\r{line:<120}");
                 let _ = std::io::stderr().flush();

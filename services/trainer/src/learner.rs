@@ -1,13 +1,14 @@
 //! Online learning: batches sampled from the replay buffer, one Adam update at a time, weights
 //! published to the predictor every few updates and kept on disk for restarts.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_WIDTH, WeightsHeader};
 use mtanet_models::Trainer;
 use mtanet_models::checkpoint::{CheckpointError, SCHEMA_VERSION};
+use mtanet_models::train::optimizer_path;
 use mtanet_models::train::UpdateStats;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -16,6 +17,54 @@ use tch::Tensor;
 use crate::config::TrainerConfig;
 use crate::probe::Prober;
 use crate::replay::{Batch, ReplayBuffer};
+
+/// The newest checkpoint in `checkpoint_dir`, and the one before it.
+pub const LATEST: &str = "latest.safetensors";
+pub const PREVIOUS: &str = "previous.safetensors";
+
+fn rename(from: &Path, to: &Path) -> Result<(), CheckpointError> {
+    std::fs::rename(from, to).map_err(|source| CheckpointError::Io {
+        path: from.to_owned(),
+        source,
+    })
+}
+
+/// Resumes from the newest readable checkpoint in `dir` (latest, else previous); returns its
+/// step (0: a fresh start). A damaged file is refused with its reason and the older one tried;
+/// one written for another network is an error: the operator changed `[trainer.model]` and must
+/// decide, rather than lose the learning to a silent fresh start.
+fn resume(trainer: &mut Trainer, dir: &Path) -> anyhow::Result<u64> {
+    let mut refused = Vec::new();
+    for name in [LATEST, PREVIOUS] {
+        let path = dir.join(name);
+        if !path.exists() {
+            continue;
+        }
+        match trainer.resume(&path) {
+            Ok(meta) => {
+                if refused.is_empty() {
+                    tracing::info!(path = %path.display(), step = meta.step, "resumed training");
+                } else {
+                    tracing::warn!(path = %path.display(), step = meta.step, "resumed training from the previous checkpoint");
+                }
+                return Ok(meta.step);
+            }
+            Err(e @ CheckpointError::Config(_)) => {
+                return Err(e).with_context(|| format!("resuming from {}", path.display()));
+            }
+            Err(e) => {
+                tracing::error!(path = %path.display(), "refusing a damaged checkpoint: {e}");
+                refused.push(path.display().to_string());
+            }
+        }
+    }
+    if refused.is_empty() {
+        tracing::info!(dir = %dir.display(), "no checkpoint yet: training starts fresh");
+    } else {
+        tracing::warn!(refused = ?refused, "no usable checkpoint: training starts fresh");
+    }
+    Ok(0)
+}
 
 pub struct Learner {
     trainer: Trainer,
@@ -47,17 +96,11 @@ impl Learner {
         let checkpoint = cfg
             .checkpoint_dir
             .as_ref()
-            .map(|d| d.join("latest.safetensors"));
-        let mut saved_step = 0;
-        if let Some(path) = checkpoint.as_ref().filter(|p| p.exists()) {
-            // A checkpoint that does not match is an error, not a silent fresh start: the operator
-            // changed the model config or the file is damaged, and must decide.
-            let meta = trainer
-                .resume(path)
-                .with_context(|| format!("resuming from {}", path.display()))?;
-            tracing::info!(path = %path.display(), step = meta.step, "resumed training");
-            saved_step = meta.step;
-        }
+            .map(|d| d.join(LATEST));
+        let saved_step = match &cfg.checkpoint_dir {
+            Some(dir) => resume(&mut trainer, dir)?,
+            None => 0,
+        };
         Ok(Self {
             trainer,
             rng: ChaCha8Rng::seed_from_u64(cfg.train.seed),
@@ -207,9 +250,19 @@ impl Learner {
         Ok(())
     }
 
-    /// Writes the checkpoint (and Adam's moments) when `checkpoint_dir` is set.
+    /// Writes the checkpoint (and Adam's moments) when `checkpoint_dir` is set, keeping the one
+    /// before as `previous.*`: the old latest is renamed (atomic) before the new one is written
+    /// (temp file + rename), so a failed write (disk full) leaves the last good one intact.
     fn save(&mut self) -> Result<(), CheckpointError> {
         if let Some(path) = &self.checkpoint {
+            let previous = path.with_file_name(PREVIOUS);
+            if path.exists() {
+                rename(path, &previous)?;
+                let opt = optimizer_path(path);
+                if opt.exists() {
+                    rename(&opt, &optimizer_path(&previous))?;
+                }
+            }
             self.trainer.save_checkpoint(path, self.last_loss)?;
             self.saved_step = self.trainer.step();
         }
@@ -229,4 +282,72 @@ fn to_tensors(b: &Batch) -> (Tensor, Tensor) {
         Tensor::from_slice(&b.images).view([n, t, IMAGE_HEIGHT as i64, IMAGE_WIDTH as i64]),
         Tensor::from_slice(&b.actions).view([n, t, ACTION_DIM as i64]),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mtanet_models::ModelConfig;
+
+    fn cfg(dir: &Path) -> TrainerConfig {
+        TrainerConfig {
+            checkpoint_dir: Some(dir.to_owned()),
+            model: ModelConfig {
+                channels: vec![4, 4, 4],
+                a_channels: vec![1, 4, 4],
+                ..TrainerConfig::default().model
+            },
+            ..TrainerConfig::default()
+        }
+    }
+
+    fn saved_at(l: &mut Learner, step: u64) {
+        l.trainer.set_step(step);
+        l.save().unwrap();
+    }
+
+    fn truncate(p: &Path) {
+        let b = std::fs::read(p).unwrap();
+        std::fs::write(p, &b[..b.len() / 2]).unwrap();
+    }
+
+    #[test]
+    fn keeps_two_checkpoints_and_falls_back_to_the_older_when_the_newer_is_damaged() {
+        let dir = tempfile::tempdir().unwrap();
+        let c = cfg(dir.path());
+        let mut l = Learner::new(&c).unwrap();
+        assert_eq!(l.updates(), 0, "nothing on disk: a fresh start");
+        saved_at(&mut l, 10);
+        saved_at(&mut l, 20);
+        assert!(dir.path().join(PREVIOUS).exists() && dir.path().join(LATEST).exists());
+        assert_eq!(Learner::new(&c).unwrap().updates(), 20, "the newest when it is good");
+        truncate(&dir.path().join(LATEST));
+        assert_eq!(Learner::new(&c).unwrap().updates(), 10, "the previous when the newest is damaged");
+        truncate(&dir.path().join(PREVIOUS));
+        assert_eq!(Learner::new(&c).unwrap().updates(), 0, "neither: a fresh start, not a crash");
+        // A checkpoint of another network is the operator's call, not a silent fresh start.
+        let mut other = cfg(dir.path());
+        other.model.channels = vec![8, 4, 4];
+        let mut l = Learner::new(&c).unwrap();
+        saved_at(&mut l, 30);
+        let e = Learner::new(&other).err().expect("a config mismatch is an error");
+        assert!(format!("{e:#}").contains("configuration differs"), "{e:#}");
+    }
+
+    #[test]
+    fn a_failed_save_leaves_the_last_good_checkpoint_intact() {
+        let dir = tempfile::tempdir().unwrap();
+        let c = cfg(dir.path());
+        let mut l = Learner::new(&c).unwrap();
+        saved_at(&mut l, 10);
+        // The disk refuses the next write: a directory sits where the temporary file would go.
+        let blocker = dir.path().join(format!(".{LATEST}.tmp{}", std::process::id()));
+        std::fs::create_dir(&blocker).unwrap();
+        l.trainer.set_step(20);
+        assert!(l.save().is_err(), "the write must fail for the test to mean anything");
+        assert_eq!(Learner::new(&c).unwrap().updates(), 10, "the step-10 checkpoint is still there");
+        std::fs::remove_dir(&blocker).unwrap();
+        saved_at(&mut l, 30);
+        assert_eq!(Learner::new(&c).unwrap().updates(), 30, "saving works again");
+    }
 }

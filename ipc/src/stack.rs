@@ -1,0 +1,142 @@
+//! `[stack]`: the processes of the stack, described once. The local supervisor (`mta up`), the
+//! systemd rendering (`mta systemd`), the soak and the system tests all start the processes from
+//! this list, in its order (and stop them in reverse).
+
+use serde::{Deserialize, Serialize};
+
+/// What to do when a process fails (exits non-zero or is killed): like systemd's
+/// `Restart=on-failure` with `StartLimitBurst`/`StartLimitIntervalSec`, plus a back-off that
+/// doubles from `backoff_s` up to `max_backoff_s` while failures come in quick succession.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RestartPolicy {
+    pub on_failure: bool,
+    /// Wait before the first restart, seconds.
+    pub backoff_s: f64,
+    pub max_backoff_s: f64,
+    /// At most this many restarts within `window_s`; one more and the supervisor gives up.
+    pub limit: u32,
+    pub window_s: f64,
+}
+
+impl Default for RestartPolicy {
+    fn default() -> Self {
+        Self {
+            on_failure: true,
+            backoff_s: 0.5,
+            max_backoff_s: 8.0,
+            limit: 5,
+            window_s: 60.0,
+        }
+    }
+}
+
+/// One process of the stack.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProcessSpec {
+    /// Short name: logs are `<binary>.log`, the systemd unit `mtanet-<name>.service`.
+    pub name: String,
+    /// Executable in the build's `target/release/`.
+    pub binary: String,
+    /// What it is (the unit's description).
+    #[serde(default)]
+    pub description: String,
+    /// Arguments after `--config FILE` (and the supervisor's own, like `--summary`).
+    #[serde(default)]
+    pub args: Vec<String>,
+    #[serde(default)]
+    pub restart: RestartPolicy,
+    /// systemd watchdog: the process pets it from its loop at least twice this often.
+    #[serde(default = "default_watchdog")]
+    pub watchdog_s: u64,
+}
+
+fn default_watchdog() -> u64 {
+    10
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StackConfig {
+    /// `[[stack.process]]` entries, in start order.
+    pub process: Vec<ProcessSpec>,
+}
+
+impl Default for StackConfig {
+    fn default() -> Self {
+        let p = |name: &str, binary: &str, description: &str| ProcessSpec {
+            name: name.into(),
+            binary: binary.into(),
+            description: description.into(),
+            args: Vec::new(),
+            restart: RestartPolicy::default(),
+            watchdog_s: default_watchdog(),
+        };
+        Self {
+            process: vec![
+                p("trainer", "mta-trainer", "mtanet trainer: online MTA-PredNet training from shared-memory replay"),
+                p("predictor", "mta-predictor", "mtanet predictor: MTA-PredNet inference and active-inference wheel control"),
+                p("simulator", "mta-simulator", "mtanet simulator: the MuJoCo line-tracer world"),
+            ],
+        }
+    }
+}
+
+impl StackConfig {
+    /// Checks names and binaries: unique, non-empty, the simulator present.
+    pub fn validate(&self) -> Result<(), String> {
+        let mut names = std::collections::BTreeSet::new();
+        for p in &self.process {
+            if p.name.is_empty() || !p.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-') {
+                return Err(format!("stack.process name {:?}: use letters, digits and '-'", p.name));
+            }
+            if !names.insert(&p.name) {
+                return Err(format!("stack.process name {:?} appears twice", p.name));
+            }
+            if p.binary.is_empty() || p.binary.contains('/') {
+                return Err(format!("stack.process {:?}: binary must be a file name in target/release", p.name));
+            }
+            let r = &p.restart;
+            if !(r.backoff_s >= 0.0 && r.max_backoff_s >= r.backoff_s && r.window_s > 0.0) {
+                return Err(format!("stack.process {:?}: restart needs 0 <= backoff_s <= max_backoff_s and window_s > 0", p.name));
+            }
+        }
+        if !self.process.iter().any(|p| p.binary == "mta-simulator") {
+            return Err("stack.process: the stack needs the simulator (binary mta-simulator)".into());
+        }
+        Ok(())
+    }
+
+    pub fn get(&self, name: &str) -> Option<&ProcessSpec> {
+        self.process.iter().find(|p| p.name == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_the_three_processes_and_files_name_bad_entries() {
+        let s = StackConfig::default();
+        s.validate().unwrap();
+        let names: Vec<&str> = s.process.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["trainer", "predictor", "simulator"]);
+        let text = r#"
+[[process]]
+name = "simulator"
+binary = "mta-simulator"
+restart = { limit = 2 }
+[[process]]
+name = "simulator"
+binary = "mta-simulator"
+"#;
+        let twice: StackConfig = toml::from_str(text).unwrap();
+        assert_eq!(twice.process[0].restart.limit, 2);
+        assert_eq!(twice.process[0].restart.backoff_s, 0.5, "unset keys keep the defaults");
+        assert!(twice.validate().unwrap_err().contains("twice"));
+        let e = toml::from_str::<StackConfig>("[[process]]\nname = \"x\"\nbinary = \"y\"\nrestrat = {}\n").unwrap_err();
+        assert!(e.to_string().contains("restrat"), "{e}");
+    }
+}

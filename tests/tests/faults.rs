@@ -1,0 +1,154 @@
+//! Faults with the real processes under the real supervisor (`mtanet_mta::supervisor`, what
+//! `mta up` runs), in real time: each process killed with SIGKILL in turn is restarted and the
+//! stack steps again within 2 s with nothing stale left; a predictor frozen for 1 s (SIGSTOP)
+//! costs missed deadlines, the simulator's fallback keeps the car going, and the loop recovers.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::ports::{Receiver, TopicShape};
+use mtanet_ipc::stack::StackConfig;
+use mtanet_ipc::{Command, names};
+use mtanet_mta::stack::*;
+use mtanet_mta::supervisor::{Event, Supervisor};
+
+fn arg(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+/// Waits until the simulator gets commands again: a command for a step at least 25 steps after
+/// the first one seen from now on (half a second of stepping), so the loop really runs.
+fn stepping(cmds: &Receiver<Command>, sup: &mut Supervisor, timeout: Duration) -> Option<Duration> {
+    let t0 = Instant::now();
+    let mut first = None;
+    while t0.elapsed() < timeout {
+        sup.poll().unwrap();
+        cmds.wait(Duration::from_millis(20)).unwrap();
+        if let Some(c) = cmds.latest().unwrap() {
+            let f = *first.get_or_insert(c.step);
+            if c.step >= f + 25 || c.step + 1000 < f {
+                return Some(t0.elapsed());
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("flt");
+    let ck = dir.path().join("ck");
+    std::fs::create_dir_all(&ck).unwrap();
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors"),
+        ck.join("latest.safetensors"),
+    )
+    .unwrap();
+    let config = dir.path().join("stack.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[simulator]\nmode = \"realtime\"\n[trainer]\ncheckpoint_dir = {:?}\npublish_every_updates = 20\nmin_sequences = 8\nprobe_every_updates = 0\n",
+            arg(&ck)
+        ),
+    )
+    .unwrap();
+    let stack = StackConfig::default();
+    let mut sup = Supervisor::new(dir.path()).unwrap();
+    for spec in &stack.process {
+        let mut a = vec!["--config".into(), arg(&config), "--namespace".into(), ns.clone()];
+        a.extend(["--summary".into(), arg(&dir.path().join(format!("{}.json", spec.binary)))]);
+        sup.add(spec, a).unwrap();
+    }
+    for (k, p) in stack.process.iter().enumerate() {
+        sup.start(&p.name).unwrap();
+        assert!(wait_for_alive(&ns, k + 1, Duration::from_secs(60)).alive.len() > k, "{} did not come up", p.name);
+    }
+    let node = create_node(&IpcConfig { namespace: ns.clone() }, "fault-watch").unwrap();
+    let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP).unwrap();
+    assert!(stepping(&cmds, &mut sup, Duration::from_secs(30)).is_some(), "the stack never stepped");
+
+    let mut times = Vec::new();
+    for victim in ["predictor", "trainer", "simulator"] {
+        if victim == "trainer" {
+            // Kill it once it has learnt and saved something of its own (publish = save).
+            let log = sup.log_path("mta-trainer");
+            let t0 = Instant::now();
+            while !std::fs::read_to_string(&log).unwrap_or_default().contains("weights published version=2") {
+                assert!(t0.elapsed() < Duration::from_secs(90), "the trainer never published");
+                sup.poll().unwrap();
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+        let pid = sup.pid(victim).unwrap();
+        let t0 = Instant::now();
+        // SAFETY: kill(2) on a child of this test.
+        unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        let mut restarted = false;
+        while t0.elapsed() < Duration::from_secs(10) && !restarted {
+            restarted = sup.poll().unwrap().iter().any(|e| matches!(e, Event::Restarted { name, .. } if name == victim));
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert!(restarted, "{victim} was not restarted");
+        let back = stepping(&cmds, &mut sup, Duration::from_secs(10));
+        let since_kill = t0.elapsed();
+        assert!(back.is_some(), "the stack did not step again after {victim} was killed");
+        // Stepping again = half a second of steps answered (~0.5 s of the 2 s allowed).
+        assert!(since_kill < Duration::from_secs(3), "{victim}: {since_kill:?} from kill to 25 steps answered");
+        times.push((victim, since_kill));
+        let c = nodes(&ns);
+        assert!(c.dead.is_empty(), "stale nodes after {victim} was restarted: {c:?}");
+    }
+    println!("kill -9 -> restarted and 25 steps answered again: {times:?}");
+    assert_eq!(sup.restarts().values().sum::<u32>(), 3);
+    let trainer_log = std::fs::read_to_string(sup.log_path("mta-trainer")).unwrap();
+    // The restarted trainer resumes at the step of its last publish (it saves then): it loses
+    // less than one checkpoint interval.
+    let step_of = |line: &str| -> Option<u64> {
+        line.split_whitespace().find_map(|w| w.strip_prefix("step=")).and_then(|v| v.parse().ok())
+    };
+    let lines: Vec<&str> = trainer_log.lines().collect();
+    let resumed: Vec<usize> = (0..lines.len()).filter(|&i| lines[i].contains("resumed training")).collect();
+    assert!(resumed.len() >= 2, "the restarted trainer resumes from its checkpoint:\n{trainer_log}");
+    let at = step_of(lines[resumed[1]]).unwrap();
+    let last_published = lines[..resumed[1]]
+        .iter()
+        .filter(|l| l.contains("weights published"))
+        .filter_map(|l| step_of(l))
+        .last()
+        .unwrap_or(0);
+    assert!(at >= last_published && at > 2351, "resumed at {at}, last published {last_published}");
+    let predictor_log = std::fs::read_to_string(sup.log_path("mta-predictor")).unwrap();
+    assert!(
+        predictor_log.matches("weights loaded").count() >= 2,
+        "the restarted predictor got the newest weights at once:\n{predictor_log}"
+    );
+
+    // Frozen for 1 s: the simulator misses the deadlines, its fallback drives, the loop recovers.
+    let pid = sup.pid("predictor").unwrap() as i32;
+    // SAFETY: signals to a child of this test.
+    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    std::thread::sleep(Duration::from_secs(1)); // the fault itself: a stopped process
+    unsafe { libc::kill(pid, libc::SIGCONT) };
+    assert!(stepping(&cmds, &mut sup, Duration::from_secs(5)).is_some(), "no recovery after SIGCONT");
+    drop((cmds, node));
+    let ends = sup.stop_all(Duration::from_secs(30));
+    for (name, how) in &ends {
+        assert_eq!(how.as_deref(), Some("exit code 0"), "{name} did not stop cleanly: {ends:?}");
+    }
+    let sim = read_json(&dir.path().join("mta-simulator.json"));
+    let missed = sim["missed_commands"].as_u64().unwrap();
+    assert!((30..=80).contains(&missed), "1 s frozen at 50 Hz: about 50 steps missed, got {missed}");
+    assert_eq!(sim["resets"], 0, "the fallback kept the car on the line: {sim}");
+    let tr = read_json(&dir.path().join("mta-trainer.json"));
+    assert_eq!(
+        tr["steps_received"].as_u64().unwrap(),
+        20 * tr["chunks_received"].as_u64().unwrap(),
+        "only whole chunks reach the trainer: {tr}"
+    );
+    let c = nodes(&ns);
+    assert!(c.alive.is_empty() && c.dead.is_empty(), "nodes left behind: {c:?}");
+    remove_namespace_files(&ns);
+}
