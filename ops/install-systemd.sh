@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Renders the systemd units in ops/systemd/ for this checkout and installs them.
-#   ./ops/install-systemd.sh [--dest DIR] [--config FILE] [--user USER]
+# Renders the systemd units of the stack (from [stack] in the config, by `mta systemd`) for this
+# checkout and installs them.
+#   ./ops/install-systemd.sh [--dest DIR] [--config FILE] [--user USER] [--bin DIR]
 # Default DEST is /etc/systemd/system (then: systemctl daemon-reload && systemctl start mtanet.target).
 # With --dest elsewhere it only renders (used by the tests to verify the units).
 set -euo pipefail
@@ -15,14 +16,5 @@ while [ $# -gt 0 ]; do
     *) echo "install-systemd: unknown option $1" >&2; exit 2 ;;
   esac
 done
-for b in mta-simulator mta-predictor mta-trainer; do
-  [ -x "$bin/$b" ] || { echo "install-systemd: $bin/$b missing: build with cargo build --release --workspace --bins" >&2; exit 1; }
-done
-mkdir -p "$dest"
-for f in "$root"/ops/systemd/*.service.in; do
-  out="$dest/$(basename "${f%.in}")"
-  sed -e "s|@BIN@|$bin|g" -e "s|@CONFIG@|$config|g" -e "s|@USER@|$user|g" "$f" >"$out"
-  echo "installed $out"
-done
-cp "$root/ops/systemd/mtanet.target" "$dest/"
-echo "installed $dest/mtanet.target"
+[ -x "$bin/mta" ] || { echo "install-systemd: $bin/mta missing: build with cargo build --release --workspace --bins" >&2; exit 1; }
+exec "$bin/mta" systemd --dest "$dest" --config "$config" --user "$user" --bin "$bin"

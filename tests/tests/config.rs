@@ -22,6 +22,8 @@ fn shipped_config_matches_every_section() {
     assert_eq!(sim.teacher.backoff_steps, 5);
     let _: mtanet_predictor::config::PredictorConfig = f.section("predictor").unwrap();
     let _: mtanet_trainer::config::TrainerConfig = f.section("trainer").unwrap();
+    let stack: mtanet_ipc::stack::StackConfig = f.section("stack").unwrap();
+    assert_eq!(stack, mtanet_ipc::stack::StackConfig::default(), "the file shows the defaults");
 }
 
 #[test]

@@ -7,6 +7,7 @@ mod soak;
 mod status;
 mod report;
 mod synth;
+mod systemd;
 mod train;
 mod up;
 
@@ -44,6 +45,8 @@ enum Cmd {
     Probe(evaluate::ProbeArgs),
     /// Drive a track in-process by active inference, through a checkpoint or the MuJoCo oracle.
     Drive(evaluate::DriveArgs),
+    /// Render the systemd units of the stack from its [stack] section.
+    Systemd(systemd::SystemdArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -58,5 +61,6 @@ fn main() -> anyhow::Result<()> {
         Cmd::Report(a) => report::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),
+        Cmd::Systemd(a) => systemd::run(a),
     }
 }
