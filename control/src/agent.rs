@@ -83,7 +83,7 @@ impl Default for AgentConfig {
             preference_frames: 300,
             preference_capacity: 2000,
             preference_steady_s: 0.0,
-            plan_wait_ms: 5.0,
+            plan_wait_ms: 2.0,
             lockstep_wait_ms: 2000.0,
             cost: CostConfig::default(),
             planner: PlannerConfig::default(),
@@ -228,7 +228,16 @@ pub struct Agent {
     found_ticks: u32,
     /// Model steps in a row the model has looked worse than `distrust_ratio`.
     distrust_steps: u64,
+    /// A segment's model step and plan submission, done after its command went out.
+    deferred: Option<Deferred>,
     pub stats: AgentStats,
+}
+
+struct Deferred {
+    frame: Vec<f32>,
+    action: Wheels,
+    /// Submit the next plan (with this warm-start restart) after the model step.
+    submit: Option<Option<Drive>>,
 }
 
 impl Agent {
@@ -261,6 +270,7 @@ impl Agent {
             lost_ticks: 0,
             found_ticks: 0,
             distrust_steps: 0,
+            deferred: None,
             stats: AgentStats::default(),
         }
     }
@@ -279,11 +289,29 @@ impl Agent {
     }
 
     /// Decides the command for this control step.
+    /// Decides this step's command and does the step's model work ([`Agent::tick`] then
+    /// [`Agent::after`]): for callers that have no command to send in between.
+    pub fn step<M, P>(&mut self, t: &Tick, model: &mut M, plans: &mut P) -> anyhow::Result<Decision>
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
+        let d = self.tick(t, model, plans)?;
+        self.after(model, plans)?;
+        Ok(d)
+    }
+
+    /// Decides the command for this control step, fast: the model step and the next plan's
+    /// submission that a segment's first step needs wait for [`Agent::after`], which the caller
+    /// runs once the command is out (the command of a segment comes from the plan made a segment
+    /// ago, so it does not need them).
     pub fn tick<M, P>(&mut self, t: &Tick, model: &mut M, plans: &mut P) -> anyhow::Result<Decision>
     where
         M: AgentModel,
         P: PlanService<M::Snapshot>,
     {
+        // Catch up if the caller skipped `after` for the previous step.
+        self.after(model, plans)?;
         if self.episode != Some(t.episode) {
             if self.episode.is_some() {
                 self.new_episode(model, plans);
@@ -301,17 +329,17 @@ impl Agent {
 
         let skip = model.frame_skip();
         let model_tick = skip.is_some_and(|s| self.ticks_in_segment == 0 || self.ticks_in_segment >= s);
-        if let Some(s) = skip
-            && model_tick
-        {
+        if model_tick {
             // The first frame of an episode follows the reset's zero command.
             let action = mean_wheels(&self.applied);
             self.applied.clear();
-            model.observe(t.frame, action)?;
+            self.deferred = Some(Deferred {
+                frame: t.frame.to_vec(),
+                action,
+                submit: None,
+            });
             self.ticks_in_segment = 0;
             self.segment += 1;
-            self.refresh_cost();
-            let _ = s;
         }
         if skip.is_some() {
             self.ticks_in_segment += 1;
@@ -356,13 +384,13 @@ impl Agent {
                         self.mode = Mode::ActiveInference;
                         self.stats.switches_to_active_inference += 1;
                         self.spare.clear();
-                        self.submit(model, plans, Some(Drive::from_wheels(self.committed)))?;
+                        self.defer_submit(Some(Drive::from_wheels(self.committed)));
                         return Ok(self.decided(self.committed, Driver::ActiveInference, None));
                     }
                 }
             }
             if self.mode == Mode::ActiveInference {
-                self.submit(model, plans, None)?;
+                self.defer_submit(None);
             }
         }
         Ok(match self.mode {
@@ -377,6 +405,31 @@ impl Agent {
                 self.decided(w, d, None)
             }
         })
+    }
+
+    fn defer_submit(&mut self, restart: Option<Drive>) {
+        if let Some(d) = self.deferred.as_mut() {
+            d.submit = Some(restart);
+        }
+    }
+
+    /// The work of a segment's first step that its command did not wait for: the model step
+    /// with the frame and the segment's mean command, the preference refresh, and submitting
+    /// the plan for the next segment from the state just reached.
+    pub fn after<M, P>(&mut self, model: &mut M, plans: &mut P) -> anyhow::Result<()>
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
+        let Some(d) = self.deferred.take() else {
+            return Ok(());
+        };
+        model.observe(&d.frame, d.action)?;
+        self.refresh_cost();
+        if let Some(restart) = d.submit {
+            self.submit(model, plans, restart)?;
+        }
+        Ok(())
     }
 
     /// True when a row of the near half of the image holds at least half its usual line (by the
@@ -487,6 +540,7 @@ impl Agent {
         M: AgentModel,
         P: PlanService<M::Snapshot>,
     {
+        self.deferred = None;
         model.reset();
         self.reactive.reset();
         self.applied.clear();
@@ -590,7 +644,7 @@ mod tests {
         let mut a = agent(&cfg());
         let mut applied = [0.0; 2];
         for _ in 0..30 {
-            let d = a.tick(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
+            let d = a.step(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
             assert_eq!(d.driver, Driver::Reactive, "an untrusted model never drives");
             applied = d.wheels;
         }
@@ -599,7 +653,7 @@ mod tests {
         model.health = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
         let mut segments: Vec<Vec<Wheels>> = Vec::new();
         for k in 0..12 {
-            let d = a.tick(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
+            let d = a.step(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
             assert_eq!(d.driver, Driver::ActiveInference, "step {k}");
             if k % 3 == 0 {
                 segments.push(Vec::new());
@@ -625,19 +679,19 @@ mod tests {
         let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
         let mut a = agent(&cfg());
         for _ in 0..30 {
-            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(a.driving_by_active_inference());
         // The bar off the line while the camera still sees it (cutting a bend): not lost.
         for _ in 0..40 {
-            a.tick(&tick(&frame, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(a.driving_by_active_inference(), "the camera still follows the line");
         // 0.5 s with neither a line sensor on nor a line in view (25 steps), then the fallback.
         let floor = [0.85f32; 96];
         let mut drivers = Vec::new();
         for _ in 0..30 {
-            drivers.push(a.tick(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap().driver);
+            drivers.push(a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap().driver);
         }
         assert_eq!(drivers.iter().filter(|d| **d == Driver::ActiveInference).count(), 24);
         assert_eq!(drivers.last(), Some(&Driver::Fallback));
@@ -645,7 +699,7 @@ mod tests {
         // Found again for 0.5 s, the middle sensor on it: active inference resumes.
         let mut back = None;
         for k in 0..40 {
-            let d = a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            let d = a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
             if d.driver == Driver::ActiveInference {
                 back = Some(k);
                 break;
@@ -665,7 +719,7 @@ mod tests {
         let mut never = Never(false);
         let mut last = [0.0; 2];
         for _ in 0..40 {
-            let d = a.tick(&Tick { lockstep: false, ..tick(&frame, CENTRED, last) }, &mut model, &mut never).unwrap();
+            let d = a.step(&Tick { lockstep: false, ..tick(&frame, CENTRED, last) }, &mut model, &mut never).unwrap();
             last = d.wheels;
         }
         assert!(a.driving_by_active_inference(), "planning late is no reason to stop");
@@ -682,17 +736,17 @@ mod tests {
         let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
         let mut a = agent(&cfg());
         for _ in 0..10 {
-            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         // Trusted and a preference learnt, but the line is gone (an exploration segment).
         let floor = [0.85f32; 96];
         for _ in 0..40 {
-            let d = a.tick(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
+            let d = a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
             assert_ne!(d.driver, Driver::ActiveInference, "never taking over off the line");
         }
         let mut k = 0;
         while !a.driving_by_active_inference() {
-            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
             k += 1;
             assert!(k < 30, "takes over once the line has been found for 0.5 s");
         }
@@ -708,20 +762,20 @@ mod tests {
         let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
         let mut a = agent(&cfg());
         for _ in 0..30 {
-            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(!a.driving_by_active_inference(), "a probe below min_probe is not trusted");
         model.health.probe = Some(0.9);
-        a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         assert!(a.driving_by_active_inference());
         // A ratio above distrust_ratio for fewer than distrust_after_steps model steps is a swing.
         model.health.model_over_copy = Some(2.0);
         for _ in 0..40 {
-            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(a.driving_by_active_inference());
         for _ in 0..20 {
-            a.tick(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
         }
         assert!(!a.driving_by_active_inference(), "sustained: the rule drives again");
         assert_eq!(a.stats.switches_to_reactive, 1);

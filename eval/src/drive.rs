@@ -134,7 +134,7 @@ where
             applied,
             lockstep: true,
         };
-        let d = agent.tick(&tick, model, plans)?;
+        let d = agent.step(&tick, model, plans)?;
         if let Some((_, compute)) = &d.plan {
             plan_us.record(compute.as_micros() as u64)?;
         }
@@ -212,7 +212,7 @@ pub fn record_reactive(world: &mut World, steps: usize, seed: u64) -> anyhow::Re
         let s = world.sense();
         let a = world.command().map(|v| v as f32);
         let t = Tick { episode, frame: &s.image, line: s.line, applied: a, lockstep: true };
-        let d = agent.tick(&t, &mut Blind, &mut NoPlans)?;
+        let d = agent.step(&t, &mut Blind, &mut NoPlans)?;
         frames.push(s.image);
         applied.push(a);
         world.step(d.wheels);

@@ -144,7 +144,7 @@ pub fn probe(
         let s = world.sense();
         let applied = world.command().map(|v| v as f32);
         let before = live.steps;
-        let d = agent.tick(
+        let d = agent.step(
             &Tick {
                 episode,
                 frame: &s.image,

@@ -12,6 +12,8 @@ pub struct LatencyStats(Histogram<u64>);
 pub struct LatencySummary {
     pub count: u64,
     pub p50_us: f64,
+    #[serde(default)]
+    pub p90_us: f64,
     pub p99_us: f64,
     pub p999_us: f64,
     pub max_us: f64,
@@ -59,6 +61,7 @@ impl LatencyStats {
         LatencySummary {
             count: h.len(),
             p50_us: us(h.value_at_quantile(0.5)),
+            p90_us: us(h.value_at_quantile(0.9)),
             p99_us: us(h.value_at_quantile(0.99)),
             p999_us: us(h.value_at_quantile(0.999)),
             max_us: us(h.max()),

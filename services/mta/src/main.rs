@@ -5,7 +5,9 @@ mod evaluate;
 mod figures;
 mod soak;
 mod status;
+mod pingpong;
 mod report;
+mod runcfg;
 mod synth;
 mod systemd;
 mod train;
@@ -34,8 +36,12 @@ enum Cmd {
     Synth(synth::SynthArgs),
     /// Show the nodes and topics of a running stack.
     Status(status::StatusArgs),
-    /// Run the three-process stack in lockstep for N steps and print latency percentiles.
+    /// Soak: the real workload for M minutes (real time or lockstep) against the raw iceoryx2
+    /// ping-pong floor; soak.json, soak.png and a table of percentiles.
     Soak(soak::SoakArgs),
+    /// The far side of the soak's raw ping-pong (started by `mta soak`).
+    #[command(hide = true)]
+    PingpongPeer(pingpong::PeerArgs),
     /// Run the whole stack here (trainer, predictor, simulator) with a live progress line and a
     /// report in the run folder (what ./ops/run_local.sh runs).
     Up(up::UpArgs),
@@ -57,6 +63,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Synth(a) => synth::run(a),
         Cmd::Status(a) => status::run(a),
         Cmd::Soak(a) => soak::run(a),
+        Cmd::PingpongPeer(a) => pingpong::peer(a),
         Cmd::Up(a) => up::run(a),
         Cmd::Report(a) => report::run(a),
         Cmd::Probe(a) => evaluate::probe(a),

@@ -232,7 +232,7 @@ fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
 }
 
 /// Log-x histograms, one row each.
-fn latency_picture(path: &Path, series: &[(&str, &Vec<[f64; 2]>)]) -> anyhow::Result<()> {
+pub fn latency_picture(path: &Path, series: &[(&str, &Vec<[f64; 2]>)]) -> anyhow::Result<()> {
     let (w, row_h, left) = (900usize, 200usize, 60i64);
     let mut c = Canvas::new(w, row_h * series.len() + 40);
     // 1 us .. 1 s over the width.

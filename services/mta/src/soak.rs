@@ -1,188 +1,294 @@
-//! `mta soak`: runs the real three-process stack in a private namespace for N lockstep steps and
-//! prints per-step latency percentiles (the "lockstep with the predictor" benchmark).
+//! `mta soak`: the real workload for M minutes, in real time (default) or lockstep: the trainer
+//! learning, the predictor stepping its model and planning, under the supervisor (`[stack]`), in
+//! a private namespace. A raw iceoryx2 ping-pong with the same payloads and wake-up mechanism
+//! measures the transport floor in the same run: alone before the stack starts, and beside it
+//! all through (the floor under the same load, which the target compares with). Writes `soak.json`
+//! (latency percentiles of each leg, tick jitter, deadline misses, dropped commands, replay
+//! losses, RSS and open files per process at start and end) and `soak.png`, and prints a table
+//! with the targets.
 
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
-use indicatif::ProgressBar;
+use indicatif::{ProgressBar, ProgressStyle};
+use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::latency::LatencySummary;
-use mtanet_mta::stack::{
-    Proc, leftover_shm, nodes, remove_namespace_files, unique_namespace, wait_for_alive,
-};
+use mtanet_ipc::stack::StackConfig;
+use mtanet_mta::stack::{bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace, wait_for_alive};
+use mtanet_mta::supervisor::{Event, Supervisor};
+use serde::Serialize;
 use serde_json::{Value, json};
+
+use crate::runcfg;
 
 #[derive(Debug, clap::Args)]
 pub struct SoakArgs {
-    /// Lockstep steps to run (50 per simulated second).
-    #[arg(long, default_value_t = 3000)]
-    steps: u64,
-    /// Track CSV (default: the oval).
+    /// Minutes of simulated time (50 steps a second).
+    #[arg(long, default_value_t = 1.0)]
+    minutes: f64,
+    /// Lockstep instead of real time.
+    #[arg(long, conflicts_with = "realtime")]
+    lockstep: bool,
+    /// Real time, 50 Hz (the default).
     #[arg(long)]
-    track: Option<PathBuf>,
-    /// Stack config file passed to every process.
+    realtime: bool,
+    /// Start the trainer (and so the predictor) from this checkpoint, so active inference plans
+    /// from the start.
+    #[arg(long)]
+    checkpoint: Option<PathBuf>,
+    /// Output folder (logs, summaries, soak.json, soak.png).
+    #[arg(long)]
+    out: PathBuf,
+    /// Stack config (default ops/mtanet.toml when it exists).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Directory for logs and summaries (default runs/soak-<time>).
     #[arg(long)]
-    dir: Option<PathBuf>,
-    /// Also write the combined result as JSON here.
-    #[arg(long)]
-    out: Option<PathBuf>,
+    track: Option<PathBuf>,
+    /// Seconds of raw ping-pong before the stack starts.
+    #[arg(long, default_value_t = 15.0)]
+    pingpong_seconds: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+struct Pct {
+    p50: f64,
+    p90: f64,
+    p99: f64,
+    p999: f64,
+    max: f64,
+}
+
+impl From<&LatencySummary> for Pct {
+    fn from(s: &LatencySummary) -> Self {
+        Self { p50: s.p50_us, p90: s.p90_us, p99: s.p99_us, p999: s.p999_us, max: s.max_us }
+    }
+}
+
+fn lat(v: &Value) -> LatencySummary {
+    serde_json::from_value(v.clone()).unwrap_or_default()
+}
+
+/// VmRSS (kB) and open file descriptors of a process.
+fn rss_and_fds(pid: u32) -> (u64, u64) {
+    let rss = std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmRSS:"))
+                .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse().ok()))
+        })
+        .unwrap_or(0);
+    let fds = std::fs::read_dir(format!("/proc/{pid}/fd")).map(|d| d.count() as u64).unwrap_or(0);
+    (rss, fds)
 }
 
 pub fn run(args: SoakArgs) -> anyhow::Result<()> {
-    let dir = args.dir.clone().unwrap_or_else(|| {
-        let t = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap_or_default();
-        PathBuf::from(format!("runs/soak-{}", t.as_secs()))
-    });
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let out = args.out.clone();
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let mode = if args.lockstep { "lockstep" } else { "realtime" };
+    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), Some(mode), &out)?;
+    let file = ConfigFile::load(Some(&config))?;
+    let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
+    let track = args.track.clone().unwrap_or(scene.track);
+    if let Some(ck) = &args.checkpoint {
+        let probed = runcfg::probed_copy(ck, &file, &track, &out)?;
+        std::fs::create_dir_all(&ck_dir)?;
+        std::fs::copy(probed, ck_dir.join("latest.safetensors"))?;
+    }
     let ns = unique_namespace("soak");
-    let path = |n: &str| dir.join(n).to_string_lossy().into_owned();
-    let mut common = vec!["--namespace".to_string(), ns.clone()];
-    if let Some(c) = &args.config {
-        common.extend(["--config".into(), c.to_string_lossy().into_owned()]);
-    }
-    let with = |extra: &[String]| -> Vec<String> { common.iter().chain(extra).cloned().collect() };
 
-    let tr_args = with(&["--summary".into(), path("trainer.json")]);
-    let pr_args = with(&["--summary".into(), path("predictor.json")]);
-    let mut sim_args = with(&[
-        "--summary".into(),
-        path("simulator.json"),
-        "--mode".into(),
-        "lockstep".into(),
-        "--expect-trainer".into(),
-        // A latency soak runs as fast as the stack answers, not at the trainer's pace.
-        "--pace".into(),
-        "0".into(),
-        "--max-steps".into(),
-        args.steps.to_string(),
-    ]);
-    if let Some(t) = &args.track {
-        sim_args.extend(["--track".into(), t.to_string_lossy().into_owned()]);
-    }
-    let spawn = |name: &str, a: &Vec<String>| Proc::try_spawn(name, a, &dir);
-    let mut trainer = spawn("mta-trainer", &tr_args)?;
-    let mut predictor = spawn("mta-predictor", &pr_args)?;
-    if wait_for_alive(&ns, 2, Duration::from_secs(60)).alive.len() < 2 {
-        bail!(
-            "predictor/trainer did not come up:\n{}\n{}",
-            predictor.log_tail(),
-            trainer.log_tail()
-        );
-    }
-    let start = Instant::now();
-    let mut sim = spawn("mta-simulator", &sim_args)?;
-    let bar =
-        ProgressBar::new_spinner().with_message(format!("soak: {} lockstep steps", args.steps));
-    let limit = Duration::from_secs_f64(60.0 + args.steps as f64 * 0.25);
-    let status = loop {
-        if let Some(s) = sim.try_wait_for(Duration::from_millis(100)) {
-            break s;
+    // 1. The transport floor, alone on the machine.
+    let peer = std::process::Command::new(bin_dir().join("mta"))
+        .args(["pingpong-peer", "--namespace", &ns])
+        .stderr(std::fs::File::create(out.join("pingpong-peer.log"))?)
+        .spawn()
+        .context("starting the ping-pong peer")?;
+    struct Kill(std::process::Child);
+    impl Drop for Kill {
+        fn drop(&mut self) {
+            // SAFETY: kill(2) on our child.
+            unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
+            let _ = self.0.wait();
         }
-        bar.tick();
-        if start.elapsed() > limit {
-            bail!(
-                "simulator still running after {limit:?}:\n{}",
-                sim.log_tail()
-            );
+    }
+    let peer = Kill(peer);
+    eprintln!("[soak] raw iceoryx2 ping-pong alone for {:.0} s", args.pingpong_seconds);
+    let period = Duration::from_secs_f64(mtanet_ipc::CONTROL_PERIOD_S);
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let (idle, _) = crate::pingpong::measure(&ns, period, Duration::from_secs_f64(args.pingpong_seconds), &never)?;
+    // ...and all through the soak, beside the stack: the floor under the same load.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let pinger = {
+        let (ns, stop) = (ns.clone(), std::sync::Arc::clone(&stop));
+        std::thread::spawn(move || crate::pingpong::measure(&ns, period, Duration::from_secs(86_400), &stop))
+    };
+
+    // 2. The stack.
+    let steps = (args.minutes * 60.0 / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
+    let stack: StackConfig = file.section("stack")?;
+    let mut sup = Supervisor::new(&out)?;
+    let arg = |p: &Path| p.to_string_lossy().into_owned();
+    for spec in &stack.process {
+        let mut a = vec!["--config".into(), arg(&config), "--namespace".into(), ns.clone()];
+        a.extend(["--summary".into(), arg(&out.join(format!("{}.json", spec.binary)))]);
+        a.extend(spec.args.iter().cloned());
+        match spec.binary.as_str() {
+            "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
+            "mta-simulator" => a.extend(["--track".into(), arg(&track), "--max-steps".into(), steps.to_string()]),
+            _ => {}
+        }
+        sup.add(spec, a)?;
+    }
+    for (k, spec) in stack.process.iter().enumerate() {
+        sup.start(&spec.name)?;
+        if wait_for_alive(&ns, k + 1, Duration::from_secs(60)).alive.len() < k + 1 {
+            bail!("{} did not come up; see {}", spec.name, sup.log_path(&spec.binary).display());
+        }
+    }
+    let bar = ProgressBar::new(steps).with_style(
+        ProgressStyle::with_template("[soak] {msg} {bar:40} {elapsed}/{duration}").expect("valid template"),
+    );
+    bar.set_message(format!("{mode}, {:.1} min", args.minutes));
+    let t0 = Instant::now();
+    let mut first: BTreeMap<String, (u64, u64)> = BTreeMap::new();
+    let mut last: BTreeMap<String, (u64, u64)> = BTreeMap::new();
+    let sample = |sup: &Supervisor, into: &mut BTreeMap<String, (u64, u64)>| {
+        for spec in &stack.process {
+            if let Some(pid) = sup.pid(&spec.name) {
+                into.insert(spec.name.clone(), rss_and_fds(pid));
+            }
         }
     };
-    bar.finish_and_clear();
-    // No grace period: the trainer takes in what is still queued when it stops.
-    for p in [&predictor, &trainer] {
-        p.signal(libc::SIGTERM);
+    let limit = Duration::from_secs_f64(120.0 + args.minutes * 60.0 * if args.lockstep { 4.0 } else { 1.5 });
+    let mut failure = None;
+    'run: loop {
+        for e in sup.poll()? {
+            match e {
+                Event::Done { name } if name == "simulator" => break 'run,
+                Event::GaveUp { name, status } | Event::Failed { name, status, .. } => {
+                    failure = Some(format!("{name} failed ({status})"));
+                    break 'run;
+                }
+                _ => {}
+            }
+        }
+        // Resource use once warmed up (a quarter in: the trainer has trained, probed and
+        // published by then), and the latest while running.
+        let warm = Duration::from_secs_f64((args.minutes * 60.0 / 4.0).max(30.0));
+        if first.is_empty() && t0.elapsed() > warm {
+            sample(&sup, &mut first);
+        }
+        sample(&sup, &mut last);
+        let elapsed = t0.elapsed();
+        bar.set_position(((elapsed.as_secs_f64() / (args.minutes * 60.0)) * steps as f64).min(steps as f64) as u64);
+        if elapsed > limit {
+            failure = Some(format!("the simulator was still running after {limit:?}"));
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(250));
     }
-    let peer_status = [
-        predictor.wait(Duration::from_secs(20)),
-        trainer.wait(Duration::from_secs(20)),
-    ];
-    if !status.success() || peer_status.iter().any(|s| !s.success()) {
-        bail!(
-            "a process failed (simulator {status}, predictor {}, trainer {}); logs in {}",
-            peer_status[0],
-            peer_status[1],
-            dir.display()
-        );
+    bar.finish_and_clear();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (pingpong, pingpong_lost) = pinger.join().map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))??;
+    drop(peer);
+    let ends = sup.stop_all(Duration::from_secs(60));
+    if let Some(f) = failure {
+        bail!("{f}; logs in {}", out.display());
+    }
+    for (name, how) in &ends {
+        if how.as_deref() != Some("exit code 0") && name != "simulator" {
+            bail!("{name} did not stop cleanly ({how:?}); logs in {}", out.display());
+        }
     }
     let read = |n: &str| -> anyhow::Result<Value> {
-        let p = dir.join(n);
-        Ok(serde_json::from_str(
-            &std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?,
-        )?)
+        let p = out.join(n);
+        Ok(serde_json::from_str(&std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?)?)
     };
-    let (sim_s, pr_s, tr_s) = (
-        read("simulator.json")?,
-        read("predictor.json")?,
-        read("trainer.json")?,
-    );
+    let (sim, pred, tr) = (read("mta-simulator.json")?, read("mta-predictor.json")?, read("mta-trainer.json")?);
     let leftovers = (nodes(&ns), leftover_shm(&ns));
     remove_namespace_files(&ns);
 
-    let lat =
-        |v: &Value| -> LatencySummary { serde_json::from_value(v.clone()).unwrap_or_default() };
-    let steps = sim_s["steps"].as_u64().unwrap_or(0);
-    // The simulator's own clock, from its wait for peers to its last step: without its process
-    // start-up and the replay linger at exit.
-    let wall = sim_s["wall_seconds"].as_f64().unwrap_or(f64::NAN);
-    println!(
-        "lockstep soak: {steps} steps in {wall:.2} s wall = {:.0} steps/s, real-time factor {:.1}x",
-        steps as f64 / wall,
-        sim_s["sim_seconds"].as_f64().unwrap_or(0.0) / wall
-    );
-    println!(
-        "{:<34}{:>10}{:>10}{:>10}{:>10}{:>8}",
-        "per step", "p50 us", "p99 us", "p99.9 us", "max us", "n"
-    );
-    for (name, v) in [
-        ("round trip obs->cmd (simulator)", &sim_s["round_trip"]),
-        ("whole step (simulator)", &sim_s["step_time"]),
-        (
-            "observation age at answer (pred.)",
-            &pr_s["observation_age"],
-        ),
-        ("decision compute (predictor)", &pr_s["compute"]),
-        ("plan, on its thread (predictor)", &pr_s["plan"]),
-    ] {
-        let l = lat(v);
-        println!(
-            "{name:<34}{:>10.1}{:>10.1}{:>10.1}{:>10.1}{:>8}",
-            l.p50_us, l.p99_us, l.p999_us, l.max_us, l.count
-        );
-    }
-    println!(
-        "answered {}/{steps}, missed {}, stale {}, teacher {}; replay chunks {} sent, {} received, {} lost",
-        sim_s["commands_received"],
-        sim_s["missed_commands"],
-        sim_s["stale_commands"],
-        sim_s["teacher_steps"],
-        sim_s["replay_chunks_sent"],
-        tr_s["chunks_received"],
-        tr_s["chunks_lost"]
-    );
-    let clean =
-        leftovers.0.alive.is_empty() && leftovers.0.dead.is_empty() && leftovers.1.is_empty();
-    println!(
-        "left behind after SIGTERM: {}",
-        if clean {
-            "nothing".into()
-        } else {
-            format!("{leftovers:?}")
-        }
-    );
-    let combined = json!({
-        "steps": steps, "wall_seconds": wall, "steps_per_second": steps as f64 / wall,
-        "simulator": sim_s, "predictor": pr_s, "trainer": tr_s, "clean_exit": clean,
+    let mut latency = BTreeMap::new();
+    latency.insert("obs_to_predictor", Pct::from(&lat(&pred["obs_to_predictor"])));
+    latency.insert("predictor", Pct::from(&lat(&pred["compute"])));
+    latency.insert("cmd_to_sim", Pct::from(&lat(&sim["cmd_to_sim"])));
+    latency.insert("round_trip", Pct::from(&lat(&sim["round_trip"])));
+    latency.insert("step", Pct::from(&lat(&sim["step_time"])));
+    latency.insert("plan", Pct::from(&lat(&pred["plan"])));
+    let raw = pingpong.summary();
+    latency.insert("raw_pingpong", Pct::from(&raw));
+    latency.insert("raw_pingpong_idle", Pct::from(&idle.summary()));
+    let n = |v: &Value| v.as_u64().unwrap_or(0);
+    let sent = n(&pred["commands_sent"]);
+    let used = n(&sim["commands_received"]);
+    let per_process: BTreeMap<String, Value> = stack
+        .process
+        .iter()
+        .map(|p| {
+            let (a, b) = (first.get(&p.name).copied().unwrap_or_default(), last.get(&p.name).copied().unwrap_or_default());
+            (p.name.clone(), json!({ "rss_kb": { "start": a.0, "end": b.0 }, "fds": { "start": a.1, "end": b.1 } }))
+        })
+        .collect();
+    let soak = json!({
+        "mode": mode,
+        "minutes": args.minutes,
+        "steps": n(&sim["steps"]),
+        "latency_us": latency,
+        "tick_jitter_us": Pct::from(&lat(&sim["tick_jitter"])),
+        // A step whose work took longer than its 20 ms period.
+        "deadline_misses": n(&sim["overruns"]),
+        // Commands later than the simulator's wait (half a period in real time): the fallback drove.
+        "late_commands": n(&sim["missed_commands"]),
+        "dropped_commands": sent.saturating_sub(used),
+        "replay": { "chunks_sent": n(&sim["replay_chunks_sent"]), "chunks_received": n(&tr["chunks_received"]), "dropped_chunks": n(&tr["chunks_lost"]) },
+        "raw_pingpong_lost": pingpong_lost,
+        "control": pred["control"],
+        "trainer_updates": n(&tr["session_updates"]),
+        "processes": per_process,
+        "restarts": sup.restarts(),
+        "clean_exit": leftovers.0.alive.is_empty() && leftovers.0.dead.is_empty() && leftovers.1.is_empty(),
     });
-    if let Some(out) = &args.out {
-        mtanet_ipc::report::write_json(out, &combined)
-            .with_context(|| format!("writing {}", out.display()))?;
-    }
-    if !clean {
+    mtanet_ipc::report::write_json(&out.join("soak.json"), &soak)?;
+    let hist = |v: &Value| -> Vec<[f64; 2]> { serde_json::from_value(v.clone()).unwrap_or_default() };
+    crate::report::latency_picture(
+        &out.join("soak.png"),
+        &[
+            ("raw ping-pong round trip (beside the stack)", &pingpong.histogram()),
+            ("observation -> predictor", &hist(&pred["obs_to_predictor_hist"])),
+            ("predictor compute", &hist(&pred["compute_hist"])),
+            ("command -> simulator", &hist(&sim["cmd_to_sim_hist"])),
+            ("simulator step", &hist(&sim["step_time_hist"])),
+        ],
+    )?;
+    print_table(&soak, &raw);
+    if !soak["clean_exit"].as_bool().unwrap_or(false) {
         bail!("the stack left iceoryx2 resources behind: {leftovers:?}");
     }
     Ok(())
+}
+
+fn print_table(soak: &Value, raw: &LatencySummary) {
+    println!("soak: {} {} steps ({} min)", soak["mode"], soak["steps"], soak["minutes"]);
+    println!("| {:<18} | {:>9} | {:>9} | {:>9} | {:>9} | {:>9} |", "latency (us)", "p50", "p90", "p99", "p99.9", "max");
+    println!("|{:-<20}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|", "", "", "", "", "", "");
+    for k in ["raw_pingpong_idle", "raw_pingpong", "round_trip", "obs_to_predictor", "predictor", "cmd_to_sim", "step", "plan"] {
+        let p = &soak["latency_us"][k];
+        let f = |q: &str| p[q].as_f64().unwrap_or(f64::NAN);
+        println!("| {k:<18} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} |", f("p50"), f("p90"), f("p99"), f("p999"), f("max"));
+    }
+    let l = &soak["latency_us"];
+    let transport = l["round_trip"]["p50"].as_f64().unwrap_or(f64::NAN) - l["predictor"]["p50"].as_f64().unwrap_or(0.0);
+    let ratio = transport / raw.p50_us.max(1e-9);
+    let check = |ok: bool| if ok { "met" } else { "NOT met" };
+    let pred_p99 = l["predictor"]["p99"].as_f64().unwrap_or(f64::NAN);
+    let step_p999 = l["step"]["p999"].as_f64().unwrap_or(f64::NAN);
+    println!("targets: predictor p99 {:.0} us <= 1000: {}; step p99.9 {:.0} us <= 3000: {}; transport p50 {:.1} us = {:.2} x raw ping-pong <= 1.2: {}",
+        pred_p99, check(pred_p99 <= 1000.0), step_p999, check(step_p999 <= 3000.0), transport, ratio, check(ratio <= 1.2));
+    println!("deadline misses {}, late commands {}, dropped commands {}, dropped replay chunks {}, tick jitter p99 {:.0} us",
+        soak["deadline_misses"], soak["late_commands"], soak["dropped_commands"], soak["replay"]["dropped_chunks"], soak["tick_jitter_us"]["p99"].as_f64().unwrap_or(f64::NAN));
+    for (name, p) in soak["processes"].as_object().into_iter().flatten() {
+        println!("{name}: rss {} -> {} kB, fds {} -> {}", p["rss_kb"]["start"], p["rss_kb"]["end"], p["fds"]["start"], p["fds"]["end"]);
+    }
 }

@@ -17,6 +17,7 @@ use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{Command, CommandSource, Observation, names};
 
 use crate::report::{self, RunInfo};
+use crate::runcfg;
 use mtanet_ipc::stack::StackConfig;
 use mtanet_mta::stack::wait_for_alive;
 use mtanet_mta::supervisor::{Event, Supervisor};
@@ -60,59 +61,12 @@ fn default_out() -> PathBuf {
     PathBuf::from("runs").join(stamp)
 }
 
-/// The config the processes get: the user's, with the run folder's checkpoint directory (unless
-/// it names one) and the mode; checked section by section before anything starts.
-fn effective_config(args: &UpArgs, out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
-    let source = args
-        .config
-        .clone()
-        .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
-    let mut table: toml::Table = match &source {
-        Some(p) => std::fs::read_to_string(p)
-            .with_context(|| format!("reading {}", p.display()))?
-            .parse()
-            .with_context(|| format!("{} is not valid TOML", p.display()))?,
-        None => toml::Table::new(),
-    };
-    let section = |t: &mut toml::Table, name: &str| -> anyhow::Result<toml::Table> {
-        match t.remove(name) {
-            None => Ok(toml::Table::new()),
-            Some(toml::Value::Table(s)) => Ok(s),
-            Some(_) => bail!("[{name}] in the config must be a table"),
-        }
-    };
-    let mut trainer = section(&mut table, "trainer")?;
-    let ck_dir = match trainer.get("checkpoint_dir").and_then(|v| v.as_str()) {
-        Some(d) => PathBuf::from(d),
-        None => {
-            let d = std::path::absolute(out.join("checkpoints"))?;
-            trainer.insert("checkpoint_dir".into(), d.to_string_lossy().into_owned().into());
-            d
-        }
-    };
-    table.insert("trainer".into(), trainer.into());
-    let mut sim = section(&mut table, "simulator")?;
-    if args.lockstep {
-        sim.insert("mode".into(), "lockstep".into());
-    }
-    table.insert("simulator".into(), sim.into());
-    let path = out.join("stack.toml");
-    std::fs::write(&path, toml::to_string(&table)?)?;
-    // Every section, as the services will read it: a typo fails here, naming file and key.
-    let file = ConfigFile::load(Some(&path))?;
-    let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
-    let _: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
-    let _: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
-    let stack: StackConfig = file.section("stack")?;
-    stack.validate().map_err(|e| file.invalid("[stack]", e))?;
-    Ok((path, ck_dir))
-}
-
 pub fn run(args: UpArgs) -> anyhow::Result<()> {
     let shutdown = Shutdown::install().context("installing signal handlers")?;
     let out = args.out.clone().unwrap_or_else(default_out);
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let (config, ck_dir) = effective_config(&args, &out)?;
+    let mode = args.lockstep.then_some("lockstep");
+    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), mode, &out)?;
     let file = ConfigFile::load(Some(&config))?;
     let mut ipc: IpcConfig = file.section("ipc")?;
     if let Some(ns) = &args.namespace {
@@ -122,7 +76,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     let track = args.track.clone().unwrap_or(scene.track);
     mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;
     let start_ck = match &args.checkpoint {
-        Some(ck) => Some(probed_copy(ck, &file, &track, &out)?),
+        Some(ck) => Some(runcfg::probed_copy(ck, &file, &track, &out)?),
         None => None,
     };
     if let (Some(ck), false) = (&start_ck, args.no_learning) {
@@ -226,33 +180,6 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         bail!("{}", failed.join("; "));
     }
     Ok(())
-}
-
-/// Checks the starting checkpoint and probes it on this run's track (the predictor trusts
-/// weights for control only with a passing probe, and a model learnt elsewhere has none here):
-/// writes `start.safetensors` in the run folder with the probe recorded, and returns its path.
-fn probed_copy(ck: &Path, file: &ConfigFile, track: &Path, out: &Path) -> anyhow::Result<PathBuf> {
-    use mtanet_models::checkpoint;
-    let bytes = std::fs::read(ck).with_context(|| format!("reading the checkpoint {}", ck.display()))?;
-    let mut loaded = checkpoint::from_bytes(&bytes).with_context(|| format!("the checkpoint {}", ck.display()))?;
-    let agent: mtanet_control::AgentConfig = file.section("predictor.active_inference")?;
-    let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
-    let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());
-    tch::set_num_threads(1);
-    let probe = mtanet_eval::probe(&scene, &bytes, &agent, &trainer.probe)
-        .with_context(|| format!("probing {} on {}", ck.display(), track.display()))?;
-    eprintln!(
-        "[up] checkpoint {} (step {}): counterfactual probe on {} = {:.3}",
-        ck.display(),
-        loaded.meta.step,
-        track.display(),
-        probe.rank_correlation
-    );
-    loaded.meta = loaded.meta.clone().with_probe(Some((loaded.meta.step, probe.rank_correlation)));
-    let (vs, _) = loaded.build()?;
-    let path = out.join("start.safetensors");
-    checkpoint::save(&path, &vs, &loaded.config, &loaded.meta)?;
-    Ok(path)
 }
 
 /// The live progress line, restarting failed processes, until a signal, the simulator's end,

@@ -11,6 +11,9 @@ pub struct PredictorConfig {
     /// libtorch intra-op threads. One: on these tiny tensors dispatch dominates, and a second
     /// thread collapses throughput when another process holds the other core.
     pub torch_threads: i32,
+    /// Niceness of the planner's thread: a plan has a whole segment (100 ms) of wall time,
+    /// while the control loop (and the simulator it answers) must wake at once.
+    pub planner_nice: i32,
     /// `[predictor.reactive]`: the line-sensor rule before the model is trusted, and fallback.
     pub reactive: ReactiveConfig,
     /// `[predictor.exploration]`: random command segments while the reactive rule drives.
@@ -25,6 +28,7 @@ impl Default for PredictorConfig {
         Self {
             log_every_s: 5.0,
             torch_threads: 1,
+            planner_nice: 5,
             reactive: ReactiveConfig::default(),
             exploration: ExplorationConfig::default(),
             active_inference: AgentConfig::default(),

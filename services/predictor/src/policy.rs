@@ -79,6 +79,15 @@ impl Policy {
         }
     }
 
+    /// The step's model work the command did not wait for (see `Agent::after`); run it once
+    /// the command is out.
+    pub fn after_command(&mut self) -> anyhow::Result<()> {
+        match (self.model.as_mut(), self.planner.as_mut()) {
+            (Some(model), Some(planner)) => self.agent.after(model, planner),
+            _ => self.agent.after(&mut Blind, &mut NoPlans),
+        }
+    }
+
     /// Weights from a checkpoint file (its recorded probe, if any, comes along).
     pub fn load_file(&mut self, path: &std::path::Path) -> anyhow::Result<()> {
         use anyhow::Context;
@@ -111,9 +120,15 @@ impl Policy {
                 // First weights, or another network: a new model and planner.
                 let imagined = Imagined::from_bytes(bytes)?;
                 let planner = Planner::new(&self.cfg.active_inference.planner)?;
-                let threads = self.cfg.torch_threads;
+                let (threads, nice) = (self.cfg.torch_threads, self.cfg.planner_nice);
                 self.planner = Some(Threaded::spawn(planner, imagined, move || {
-                    tch::set_num_threads(threads)
+                    tch::set_num_threads(threads);
+                    // Linux: a thread's niceness is set through its thread id.
+                    // SAFETY: setpriority(2) on this thread only.
+                    let tid = unsafe { libc::gettid() } as libc::id_t;
+                    if unsafe { libc::setpriority(libc::PRIO_PROCESS, tid, nice) } != 0 {
+                        tracing::warn!(nice, "could not lower the planner thread's priority");
+                    }
                 })?);
                 self.model = Some(fresh);
             }
@@ -168,6 +183,7 @@ mod tests {
                 o.wheel_velocity = [5.0, 5.5];
                 vary(&mut o, s);
                 p.act(&o).unwrap();
+                p.after_command().unwrap();
             }
             let m = p.model.as_ref().unwrap();
             m.state().layers[0].r.abs().sum(tch::Kind::Double).double_value(&[])
@@ -198,6 +214,7 @@ mod tests {
         // The model steps every frame_skip (2) observations.
         for s in 1..=6 {
             p.act(&obs([0, 1, 0], s)).unwrap();
+            p.after_command().unwrap();
         }
         assert_eq!(p.model.as_ref().unwrap().steps, 3);
         p.load_weights(&small_checkpoint(2, small()), 4, f32::NAN).unwrap();

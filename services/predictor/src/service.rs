@@ -51,6 +51,8 @@ pub struct Summary {
     pub copy_last_mse: Option<f64>,
     /// Counterfactual probe of the weights in use.
     pub probe: Option<f64>,
+    /// Observation published -> taken in by the predictor (transport and wake-up).
+    pub obs_to_predictor: LatencySummary,
     /// Observation published -> command decided (transport in + own compute).
     pub observation_age: LatencySummary,
     /// Own compute per step until the command is sent (the model step included, every
@@ -58,13 +60,18 @@ pub struct Summary {
     pub compute: LatencySummary,
     /// Wall time of each plan taken up (computed on the planner's thread).
     pub plan: LatencySummary,
-    /// Histogram (upper bound in us, count) of `compute`, for pictures.
+    /// Work after the command went out: the model step and submitting the next plan.
+    pub after_command: LatencySummary,
+    /// Histograms (upper bound in us, count) of `compute` and `obs_to_predictor`, for pictures.
     pub compute_hist: Vec<[f64; 2]>,
+    pub obs_to_predictor_hist: Vec<[f64; 2]>,
 }
 
 /// Per-step latencies the loop records.
 #[derive(Default)]
 struct StepStats {
+    receive: LatencyStats,
+    after: LatencyStats,
     age: LatencyStats,
     compute: LatencyStats,
     plan: LatencyStats,
@@ -146,7 +153,10 @@ pub fn run_with(
     summary.observation_age = stats.age.summary();
     summary.compute = stats.compute.summary();
     summary.plan = stats.plan.summary();
+    summary.after_command = stats.after.summary();
     summary.compute_hist = stats.compute.histogram();
+    summary.obs_to_predictor = stats.receive.summary();
+    summary.obs_to_predictor_hist = stats.receive.histogram();
     Ok(summary)
 }
 
@@ -159,7 +169,10 @@ fn answer_observations(
 ) -> anyhow::Result<()> {
     ports.observations.drain_events()?;
     let mut pending = Vec::new();
-    ports.observations.for_each(|o| pending.push(*o))?;
+    ports.observations.for_each(|o| {
+        stats.receive.record_ns(stamp::elapsed_ns(o.stamp_ns));
+        pending.push(*o)
+    })?;
     for obs in pending {
         summary.observations += 1;
         if expected_step.is_some_and(|s| s != obs.step) {
@@ -187,6 +200,10 @@ fn answer_observations(
         if let Some((_, plan)) = &decision.plan {
             stats.plan.record_ns(plan.as_nanos() as u64);
         }
+        // The model step and the next plan's submission, now the car has its command.
+        let t1 = Instant::now();
+        policy.after_command()?;
+        stats.after.record_ns(t1.elapsed().as_nanos() as u64);
     }
     Ok(())
 }

@@ -73,9 +73,16 @@ pub struct Summary {
     pub step_time: LatencySummary,
     /// Real time: how far past its 50 Hz tick each step finished (floor 1 us).
     pub tick_late: LatencySummary,
-    /// Histograms (upper bound in us, count) of `step_time` and `round_trip`, for pictures.
+    /// Command published by the predictor -> taken in here (transport and wake-up).
+    pub cmd_to_sim: LatencySummary,
+    /// Real time: how late each step started against its 50 Hz schedule.
+    pub tick_jitter: LatencySummary,
+    /// Steps whose work took longer than the control period (their tick was missed).
+    pub overruns: u64,
+    /// Histograms (upper bound in us, count), for pictures.
     pub step_time_hist: Vec<[f64; 2]>,
     pub round_trip_hist: Vec<[f64; 2]>,
+    pub cmd_to_sim_hist: Vec<[f64; 2]>,
     pub laps: u32,
     pub lateral_error_m: LateralError,
     /// Who drove, and how well (per command source).
@@ -111,8 +118,11 @@ pub fn run(
     // Who decided the command in force (it led to the next frame).
     let mut applied_source = CommandSource::Teacher;
     let (mut round_trip, mut step_time) = (LatencyStats::new(), LatencyStats::new());
-    // Real time: how late each step finished against its 50 Hz tick (0 when on time).
+    // Real time: how late each step finished against its 50 Hz tick (0 when on time), and how
+    // late it started; command publish -> receive.
     let mut tick_late = LatencyStats::new();
+    let mut tick_jitter = LatencyStats::new();
+    let mut cmd_to_sim = LatencyStats::new();
     let mut chunk = ChunkBuilder::default();
     let mut last_cmd = [0.0f32; 2];
     let mut consecutive_misses = 0u32;
@@ -132,6 +142,10 @@ pub fn run(
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = Instant::now();
+        if cfg.mode == Mode::Realtime {
+            let due = start + Duration::from_secs_f64(step as f64 * period);
+            tick_jitter.record_ns(t0.saturating_duration_since(due).as_nanos() as u64);
+        }
         let sensors = world.sense();
         drive.record(&sensors.truth);
         let applied = world.command().map(|v| v as f32);
@@ -158,11 +172,12 @@ pub fn run(
             &mut summary.stale_commands,
         )?;
         let (cmd, source) = match answer {
-            Some(c) => {
+            Some((c, received_ns)) => {
                 consecutive_misses = 0;
                 if c.step == step {
                     summary.commands_received += 1;
                     round_trip.record_ns(stamp::elapsed_ns(obs_stamp));
+                    cmd_to_sim.record_ns(received_ns.saturating_sub(c.stamp_ns));
                 }
                 let source = CommandSource::from_u32(c.source).unwrap_or(CommandSource::Reactive);
                 (c.wheel_velocity, source)
@@ -238,7 +253,11 @@ pub fn run(
         }
         step += 1;
         // The step's own work (in real time the wait for the next tick comes after).
-        step_time.record_ns(t0.elapsed().as_nanos() as u64);
+        let work = t0.elapsed();
+        step_time.record_ns(work.as_nanos() as u64);
+        if work.as_secs_f64() > period {
+            summary.overruns += 1;
+        }
         if cfg.mode == Mode::Realtime {
             let next = start + Duration::from_secs_f64(step as f64 * period);
             let late = Instant::now().saturating_duration_since(next);
@@ -268,6 +287,9 @@ pub fn run(
     summary.tick_late = tick_late.summary();
     summary.step_time_hist = step_time.histogram();
     summary.round_trip_hist = round_trip.histogram();
+    summary.cmd_to_sim = cmd_to_sim.summary();
+    summary.cmd_to_sim_hist = cmd_to_sim.histogram();
+    summary.tick_jitter = tick_jitter.summary();
     summary.laps = drive.laps();
     summary.lateral_error_m = drive.lateral();
     summary.control = control.summary();
@@ -368,20 +390,21 @@ fn publish_observation(ports: &Ports, m: &ObsMeta, s: &Sensors) -> anyhow::Resul
     Ok(stamp_ns)
 }
 
-/// Waits up to `timeout` for the command answering `step`; drops answers to earlier steps.
+/// Waits up to `timeout` for the command answering `step` (with the time it was taken in);
+/// drops answers to earlier steps.
 fn await_command(
     ports: &Ports,
     step: u64,
     timeout: Duration,
     shutdown: &Shutdown,
     stale: &mut u64,
-) -> anyhow::Result<Option<Command>> {
+) -> anyhow::Result<Option<(Command, u64)>> {
     let deadline = Instant::now() + timeout;
     loop {
         let mut found = None;
         ports.commands.for_each(|c| {
             if c.step == step {
-                found = Some(*c);
+                found = Some((*c, stamp::monotonic_ns()));
             } else {
                 *stale += 1;
             }

@@ -1,0 +1,107 @@
+//! The transport floor for `mta soak`: a raw iceoryx2 ping-pong between this process and a peer
+//! process (`mta pingpong-peer`), with the stack's payloads (an `Observation` out, a `Command`
+//! back) and its wake-up mechanism (event notification; the peer blocks in a WaitSet like the
+//! predictor, this side waits on its listener like the simulator), paced at the control period.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use mtanet_ipc::latency::LatencyStats;
+use mtanet_ipc::node::{IpcConfig, create_node, create_waitset};
+use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::{Command, Observation, stamp};
+
+const PING: &str = "mtanet-soak/ping";
+const PONG: &str = "mtanet-soak/pong";
+
+#[derive(Debug, clap::Args)]
+pub struct PeerArgs {
+    #[arg(long)]
+    namespace: String,
+}
+
+/// The peer: answers every ping with a pong until SIGTERM.
+pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
+    let shutdown = Shutdown::install()?;
+    let node = create_node(&IpcConfig { namespace: args.namespace }, "pingpong-peer")?;
+    let ping = Receiver::<Observation>::open(&node, PING, TopicShape::STEP)?;
+    let pong = Sender::<Command>::open(&node, PONG, TopicShape::STEP)?;
+    let waitset = create_waitset()?;
+    let guard = waitset.attach_notification(ping.listener())?;
+    while !shutdown.requested() {
+        let mut failure = None;
+        let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+            if id.has_event_from(&guard) {
+                let r = ping.drain_events().and_then(|_| {
+                    let mut seen = Vec::new();
+                    ping.for_each(|o| seen.push((o.step, o.stamp_ns)))?;
+                    for (step, obs_stamp_ns) in seen {
+                        pong.send_with(|c| {
+                            c.step = step;
+                            c.obs_stamp_ns = obs_stamp_ns;
+                            c.stamp_ns = stamp::monotonic_ns();
+                        })?;
+                    }
+                    Ok(())
+                });
+                if let Err(e) = r {
+                    failure = Some(e);
+                    return CallbackProgression::Stop;
+                }
+            }
+            CallbackProgression::Continue
+        };
+        waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
+        if let Some(e) = failure {
+            return Err(e.into());
+        }
+    }
+    Ok(())
+}
+
+/// Pings the peer every `period` for `duration` or until `stop`; round trips that never came
+/// back within the period count as lost.
+pub fn measure(
+    ns: &str,
+    period: Duration,
+    duration: Duration,
+    stop: &std::sync::atomic::AtomicBool,
+) -> anyhow::Result<(LatencyStats, u64)> {
+    let node = create_node(&IpcConfig { namespace: ns.into() }, "pingpong")?;
+    let ping = Sender::<Observation>::open(&node, PING, TopicShape::STEP)?;
+    let pong = Receiver::<Command>::open(&node, PONG, TopicShape::STEP)?;
+    let t0 = Instant::now();
+    while ping.subscribers() == 0 || pong.publishers() == 0 {
+        anyhow::ensure!(t0.elapsed() < Duration::from_secs(20), "the ping-pong peer did not come up");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut stats = LatencyStats::new();
+    let mut lost = 0;
+    let start = Instant::now();
+    let mut k = 0u64;
+    while start.elapsed() < duration && !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        // Stamped last before sending, as the simulator stamps its observations.
+        let mut stamp0 = 0;
+        ping.send_with(|o| {
+            o.step = k;
+            o.stamp_ns = stamp::monotonic_ns();
+            stamp0 = o.stamp_ns;
+        })?;
+        let deadline = Instant::now() + period;
+        let mut back = false;
+        while !back && Instant::now() < deadline {
+            pong.for_each(|c| back |= c.step == k)?;
+            if back {
+                stats.record_ns(stamp::elapsed_ns(stamp0));
+            } else {
+                pong.wait(deadline.saturating_duration_since(Instant::now()))?;
+            }
+        }
+        lost += u64::from(!back);
+        k += 1;
+        let next = start + period * k as u32;
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+    }
+    Ok((stats, lost))
+}

@@ -1,0 +1,83 @@
+//! What `mta up` and `mta soak` share before they start a stack: the effective config in the run
+//! folder, and a starting checkpoint checked and probed on the run's track.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use mtanet_ipc::config::ConfigFile;
+use mtanet_ipc::stack::StackConfig;
+
+/// The config the processes get: the user's, with the run folder's checkpoint directory (unless
+/// it names one) and the mode; checked section by section before anything starts.
+pub fn effective_config(config: Option<&Path>, mode: Option<&str>, out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let source = config
+        .map(Path::to_path_buf)
+        .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
+    let mut table: toml::Table = match &source {
+        Some(p) => std::fs::read_to_string(p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .parse()
+            .with_context(|| format!("{} is not valid TOML", p.display()))?,
+        None => toml::Table::new(),
+    };
+    let section = |t: &mut toml::Table, name: &str| -> anyhow::Result<toml::Table> {
+        match t.remove(name) {
+            None => Ok(toml::Table::new()),
+            Some(toml::Value::Table(s)) => Ok(s),
+            Some(_) => bail!("[{name}] in the config must be a table"),
+        }
+    };
+    let mut trainer = section(&mut table, "trainer")?;
+    let ck_dir = match trainer.get("checkpoint_dir").and_then(|v| v.as_str()) {
+        Some(d) => PathBuf::from(d),
+        None => {
+            let d = std::path::absolute(out.join("checkpoints"))?;
+            trainer.insert("checkpoint_dir".into(), d.to_string_lossy().into_owned().into());
+            d
+        }
+    };
+    table.insert("trainer".into(), trainer.into());
+    let mut sim = section(&mut table, "simulator")?;
+    if let Some(m) = mode {
+        sim.insert("mode".into(), m.into());
+    }
+    table.insert("simulator".into(), sim.into());
+    let path = out.join("stack.toml");
+    std::fs::write(&path, toml::to_string(&table)?)?;
+    // Every section, as the services will read it: a typo fails here, naming file and key.
+    let file = ConfigFile::load(Some(&path))?;
+    let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let _: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
+    let _: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    let stack: StackConfig = file.section("stack")?;
+    stack.validate().map_err(|e| file.invalid("[stack]", e))?;
+    Ok((path, ck_dir))
+}
+
+/// Checks the starting checkpoint and probes it on this run's track (the predictor trusts
+/// weights for control only with a passing probe, and a model learnt elsewhere has none here):
+/// writes `start.safetensors` in the run folder with the probe recorded, and returns its path.
+pub fn probed_copy(ck: &Path, file: &ConfigFile, track: &Path, out: &Path) -> anyhow::Result<PathBuf> {
+    use mtanet_models::checkpoint;
+    let bytes = std::fs::read(ck).with_context(|| format!("reading the checkpoint {}", ck.display()))?;
+    let mut loaded = checkpoint::from_bytes(&bytes).with_context(|| format!("the checkpoint {}", ck.display()))?;
+    let agent: mtanet_control::AgentConfig = file.section("predictor.active_inference")?;
+    let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());
+    tch::set_num_threads(1);
+    let probe = mtanet_eval::probe(&scene, &bytes, &agent, &trainer.probe)
+        .with_context(|| format!("probing {} on {}", ck.display(), track.display()))?;
+    eprintln!(
+        "[up] checkpoint {} (step {}): counterfactual probe on {} = {:.3}",
+        ck.display(),
+        loaded.meta.step,
+        track.display(),
+        probe.rank_correlation
+    );
+    loaded.meta = loaded.meta.clone().with_probe(Some((loaded.meta.step, probe.rank_correlation)));
+    let (vs, _) = loaded.build()?;
+    let path = out.join("start.safetensors");
+    checkpoint::save(&path, &vs, &loaded.config, &loaded.meta)?;
+    Ok(path)
+}
+
