@@ -50,6 +50,12 @@ pub struct ProcessSpec {
     /// systemd watchdog: the process pets it from its loop at least twice this often.
     #[serde(default = "default_watchdog")]
     pub watchdog_s: u64,
+    /// SCHED_FIFO priority (1-99) for the processes on the 50 Hz path, so a busy trainer or
+    /// planner (SCHED_OTHER) cannot delay their wake-ups; none: the normal scheduler. Needs
+    /// root or CAP_SYS_NICE / `ulimit -r`; without it the process runs normally (a warning).
+    /// Threads doing long work inside such a process (the planner) set SCHED_OTHER themselves.
+    #[serde(default)]
+    pub realtime_priority: Option<i32>,
 }
 
 fn default_watchdog() -> u64 {
@@ -65,19 +71,20 @@ pub struct StackConfig {
 
 impl Default for StackConfig {
     fn default() -> Self {
-        let p = |name: &str, binary: &str, description: &str| ProcessSpec {
+        let p = |name: &str, binary: &str, description: &str, rt: Option<i32>| ProcessSpec {
             name: name.into(),
             binary: binary.into(),
             description: description.into(),
             args: Vec::new(),
             restart: RestartPolicy::default(),
             watchdog_s: default_watchdog(),
+            realtime_priority: rt,
         };
         Self {
             process: vec![
-                p("trainer", "mta-trainer", "mtanet trainer: online MTA-PredNet training from shared-memory replay"),
-                p("predictor", "mta-predictor", "mtanet predictor: MTA-PredNet inference and active-inference wheel control"),
-                p("simulator", "mta-simulator", "mtanet simulator: the MuJoCo line-tracer world"),
+                p("trainer", "mta-trainer", "mtanet trainer: online MTA-PredNet training from shared-memory replay", None),
+                p("predictor", "mta-predictor", "mtanet predictor: MTA-PredNet inference and active-inference wheel control", Some(20)),
+                p("simulator", "mta-simulator", "mtanet simulator: the MuJoCo line-tracer world", Some(21)),
             ],
         }
     }
@@ -96,6 +103,9 @@ impl StackConfig {
             }
             if p.binary.is_empty() || p.binary.contains('/') {
                 return Err(format!("stack.process {:?}: binary must be a file name in target/release", p.name));
+            }
+            if p.realtime_priority.is_some_and(|q| !(1..=99).contains(&q)) {
+                return Err(format!("stack.process {:?}: realtime_priority must be 1-99", p.name));
             }
             let r = &p.restart;
             if !(r.backoff_s >= 0.0 && r.max_backoff_s >= r.backoff_s && r.window_s > 0.0) {

@@ -19,11 +19,27 @@ const PONG: &str = "mtanet-soak/pong";
 pub struct PeerArgs {
     #[arg(long)]
     namespace: String,
+    /// SCHED_FIFO priority, as the predictor's (the floor must be measured like the stack runs).
+    #[arg(long)]
+    priority: Option<i32>,
+}
+
+/// Puts the calling thread under SCHED_FIFO at `priority` (none: leaves it); false when refused.
+pub fn realtime(priority: Option<i32>) -> bool {
+    let Some(p) = priority else { return true };
+    let param = libc::sched_param { sched_priority: p };
+    // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
+    let ok = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0;
+    if !ok {
+        tracing::warn!(priority = p, "SCHED_FIFO refused; the ping-pong runs with the normal scheduler");
+    }
+    ok
 }
 
 /// The peer: answers every ping with a pong until SIGTERM.
 pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
     let shutdown = Shutdown::install()?;
+    realtime(args.priority);
     let node = create_node(&IpcConfig { namespace: args.namespace }, "pingpong-peer")?;
     let ping = Receiver::<Observation>::open(&node, PING, TopicShape::STEP)?;
     let pong = Sender::<Command>::open(&node, PONG, TopicShape::STEP)?;
@@ -60,14 +76,16 @@ pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Pings the peer every `period` for `duration` or until `stop`; round trips that never came
+/// Pings the peer every `period` for `duration` or until `stop`, at the simulator's `priority`; round trips that never came
 /// back within the period count as lost.
 pub fn measure(
     ns: &str,
     period: Duration,
     duration: Duration,
     stop: &std::sync::atomic::AtomicBool,
+    priority: Option<i32>,
 ) -> anyhow::Result<(LatencyStats, u64)> {
+    realtime(priority);
     let node = create_node(&IpcConfig { namespace: ns.into() }, "pingpong")?;
     let ping = Sender::<Observation>::open(&node, PING, TopicShape::STEP)?;
     let pong = Receiver::<Command>::open(&node, PONG, TopicShape::STEP)?;

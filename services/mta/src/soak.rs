@@ -98,10 +98,14 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         std::fs::copy(probed, ck_dir.join("latest.safetensors"))?;
     }
     let ns = unique_namespace("soak");
+    let stack: StackConfig = file.section("stack")?;
+    let prio = |binary: &str| stack.process.iter().find(|p| p.binary == binary).and_then(|p| p.realtime_priority);
+    let (sim_prio, pred_prio) = (prio("mta-simulator"), prio("mta-predictor"));
 
     // 1. The transport floor, alone on the machine.
     let peer = std::process::Command::new(bin_dir().join("mta"))
         .args(["pingpong-peer", "--namespace", &ns])
+        .args(pred_prio.map(|p| format!("--priority={p}")))
         .stderr(std::fs::File::create(out.join("pingpong-peer.log"))?)
         .spawn()
         .context("starting the ping-pong peer")?;
@@ -117,17 +121,16 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     eprintln!("[soak] raw iceoryx2 ping-pong alone for {:.0} s", args.pingpong_seconds);
     let period = Duration::from_secs_f64(mtanet_ipc::CONTROL_PERIOD_S);
     let never = std::sync::atomic::AtomicBool::new(false);
-    let (idle, _) = crate::pingpong::measure(&ns, period, Duration::from_secs_f64(args.pingpong_seconds), &never)?;
+    let (idle, _) = crate::pingpong::measure(&ns, period, Duration::from_secs_f64(args.pingpong_seconds), &never, sim_prio)?;
     // ...and all through the soak, beside the stack: the floor under the same load.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let pinger = {
         let (ns, stop) = (ns.clone(), std::sync::Arc::clone(&stop));
-        std::thread::spawn(move || crate::pingpong::measure(&ns, period, Duration::from_secs(86_400), &stop))
+        std::thread::spawn(move || crate::pingpong::measure(&ns, period, Duration::from_secs(86_400), &stop, sim_prio))
     };
 
     // 2. The stack.
     let steps = (args.minutes * 60.0 / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
-    let stack: StackConfig = file.section("stack")?;
     let mut sup = Supervisor::new(&out)?;
     let arg = |p: &Path| p.to_string_lossy().into_owned();
     for spec in &stack.process {

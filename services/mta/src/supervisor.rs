@@ -133,10 +133,27 @@ impl Supervisor {
             .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
+        if let Some(prio) = c.spec.realtime_priority {
+            // SAFETY: sched_setscheduler(2) is async-signal-safe; it only changes this child.
+            // A refusal (no privilege) is checked and reported from the parent below.
+            unsafe {
+                cmd.pre_exec(move || {
+                    let param = libc::sched_param { sched_priority: prio };
+                    libc::sched_setscheduler(0, libc::SCHED_FIFO, &param);
+                    Ok(())
+                });
+            }
+        }
         let mut child = cmd
             .spawn()
             .with_context(|| format!("starting {} (build with cargo build --release --workspace --bins)", path.display()))?;
         let pid = child.id();
+        if let Some(prio) = c.spec.realtime_priority {
+            // SAFETY: reads the policy of our own child.
+            if unsafe { libc::sched_getscheduler(pid as libc::pid_t) } != libc::SCHED_FIFO {
+                tracing::warn!(process = %name, prio, "could not give it SCHED_FIFO (needs root or CAP_SYS_NICE); it runs with the normal scheduler");
+            }
+        }
         let stderr = child.stderr.take().expect("stderr is piped");
         let tag = c.spec.name.clone();
         let mut own = std::fs::OpenOptions::new().append(true).open(&log_path)?;

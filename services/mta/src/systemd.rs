@@ -44,6 +44,10 @@ fn unit(spec: &ProcessSpec, after: Option<&ProcessSpec>, bin: &str, config: &str
         exec.push_str(a);
     }
     let _ = writeln!(u, "ExecStart={exec}\nWatchdogSec={}", spec.watchdog_s);
+    if let Some(prio) = spec.realtime_priority {
+        let _ = writeln!(u, "# On the 50 Hz path: real-time scheduling (its planner thread drops back to normal).");
+        let _ = writeln!(u, "CPUSchedulingPolicy=fifo\nCPUSchedulingPriority={prio}");
+    }
     // systemd 252 has no doubling back-off (RestartSteps= came in 254): the first delay is used.
     let restart = if r.on_failure { "on-failure" } else { "no" };
     let _ = writeln!(u, "Restart={restart}\nRestartSec={}", r.backoff_s);

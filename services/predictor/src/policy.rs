@@ -123,6 +123,11 @@ impl Policy {
                 let (threads, nice) = (self.cfg.torch_threads, self.cfg.planner_nice);
                 self.planner = Some(Threaded::spawn(planner, imagined, move || {
                     tch::set_num_threads(threads);
+                    // Plans are long: under SCHED_FIFO (inherited from a real-time predictor)
+                    // the planner would hold a core from the simulator and the trainer.
+                    // SAFETY: sched_setscheduler(2) with pid 0 changes this thread only.
+                    let normal = libc::sched_param { sched_priority: 0 };
+                    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal) };
                     // Linux: a thread's niceness is set through its thread id.
                     // SAFETY: setpriority(2) on this thread only.
                     let tid = unsafe { libc::gettid() } as libc::id_t;
