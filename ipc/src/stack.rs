@@ -118,6 +118,16 @@ impl StackConfig {
         Ok(())
     }
 
+    /// The stack for a run in real time or lockstep: real-time priorities only serve the 50 Hz
+    /// clock; in lockstep the simulator and predictor run flat out and SCHED_FIFO would only take
+    /// a core from the trainer the run waits for.
+    pub fn for_mode(mut self, realtime: bool) -> Self {
+        if !realtime {
+            self.process.iter_mut().for_each(|p| p.realtime_priority = None);
+        }
+        self
+    }
+
     pub fn get(&self, name: &str) -> Option<&ProcessSpec> {
         self.process.iter().find(|p| p.name == name)
     }

@@ -98,7 +98,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         std::fs::copy(probed, ck_dir.join("latest.safetensors"))?;
     }
     let ns = unique_namespace("soak");
-    let stack: StackConfig = file.section("stack")?;
+    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
+    let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let prio = |binary: &str| stack.process.iter().find(|p| p.binary == binary).and_then(|p| p.realtime_priority);
     let (sim_prio, pred_prio) = (prio("mta-simulator"), prio("mta-predictor"));
 

@@ -98,7 +98,9 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     eprintln!("[up] run folder {}; config {}", out.display(), config.display());
 
     let arg = |p: &Path| p.to_string_lossy().into_owned();
-    let stack: StackConfig = file.section("stack")?;
+    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
+    let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
     let mut order = Vec::new();
     for spec in &stack.process {
