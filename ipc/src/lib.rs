@@ -16,6 +16,7 @@ pub mod report;
 pub mod shutdown;
 pub mod stack;
 pub mod stamp;
+pub mod stats;
 pub mod systemd;
 pub mod weights_topic;
 

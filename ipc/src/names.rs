@@ -14,5 +14,8 @@ pub const WEIGHTS: &str = "mtanet/weights";
 /// trainer -> simulator: [`crate::TrainerStatus`] after every update (lockstep pacing).
 pub const TRAINER_STATUS: &str = "mtanet/trainer_status";
 
+/// every process -> `mta status`: one [`crate::ProcessStats`] per process a second.
+pub const STATS: &str = "mtanet/stats";
+
 /// Every topic, for status listings and clean-up checks.
-pub const ALL: [&str; 5] = [OBSERVATION, COMMAND, REPLAY, WEIGHTS, TRAINER_STATUS];
+pub const ALL: [&str; 6] = [OBSERVATION, COMMAND, REPLAY, WEIGHTS, TRAINER_STATUS, STATS];

@@ -62,17 +62,7 @@ impl IpcConfig {
 
 /// Creates this process's node; cleans up what crashed peers of the namespace left behind.
 pub fn create_node(cfg: &IpcConfig, name: &str) -> Result<Node<ipc::Service>, NodeError> {
-    let config = cfg.iceoryx2()?;
-    let node_name = NodeName::new(name).map_err(|_| NodeError::BadName(name.into()))?;
-    let node = NodeBuilder::new()
-        .name(&node_name)
-        .config(&config)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
-        .map_err(|source| NodeError::Create {
-            name: name.into(),
-            source,
-        })?;
+    let node = create_observer_node(cfg, name)?;
     let cleaned = node.try_cleanup_dead_nodes();
     if cleaned.cleanups > 0 || cleaned.failed_cleanups > 0 {
         tracing::warn!(
@@ -84,6 +74,22 @@ pub fn create_node(cfg: &IpcConfig, name: &str) -> Result<Node<ipc::Service>, No
     Ok(node)
 }
 
+/// A node that leaves dead nodes alone, for a viewer that reports them (`mta status`).
+pub fn create_observer_node(cfg: &IpcConfig, name: &str) -> Result<Node<ipc::Service>, NodeError> {
+    let config = cfg.iceoryx2()?;
+    let node_name = NodeName::new(name).map_err(|_| NodeError::BadName(name.into()))?;
+    let node = NodeBuilder::new()
+        .name(&node_name)
+        .config(&config)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|source| NodeError::Create {
+            name: name.into(),
+            source,
+        })?;
+    Ok(node)
+}
+
 /// A WaitSet that leaves signals to signal-hook.
 pub fn create_waitset() -> Result<WaitSet<ipc::Service>, iceoryx2::waitset::WaitSetCreateError> {
     WaitSetBuilder::new()
@@ -92,7 +98,7 @@ pub fn create_waitset() -> Result<WaitSet<ipc::Service>, iceoryx2::waitset::Wait
 }
 
 /// The nodes of a namespace, by state: what `mta status` shows and what tests check after a run.
-#[derive(Debug, Default, Clone, PartialEq, Eq)]
+#[derive(Debug, Default, Clone, PartialEq, Eq, Serialize)]
 pub struct NodeCensus {
     pub alive: Vec<String>,
     pub dead: Vec<String>,
@@ -123,7 +129,7 @@ pub fn census(cfg: &IpcConfig) -> Result<NodeCensus, NodeError> {
 }
 
 /// One service of a namespace as `mta status` shows it.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct ServiceEntry {
     pub name: String,
     /// "publish-subscribe", "event", ...

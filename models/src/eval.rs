@@ -38,7 +38,7 @@ pub fn evaluate(
     let _g = tch::no_grad_guard();
     let (n, t) = (data.len(), data.steps());
     let per_step = |actions: &Tensor| -> Result<Tensor, ModelError> {
-        let mut sums = Tensor::zeros([t], (Kind::Double, tch::Device::Cpu));
+        let mut sums = Tensor::zeros([t], (Kind::Double, data.images.device()));
         for start in (0..n).step_by(batch.max(1) as usize) {
             let len = batch.min(n - start);
             let imgs = data.images.narrow(0, start, len);

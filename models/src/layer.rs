@@ -73,6 +73,8 @@ pub struct PredLayer {
     channels: i64,
     a_channels: i64,
     size: (i64, i64),
+    /// Where the weights live (the VarStore's device): states are made there too.
+    device: tch::Device,
 }
 
 impl PredLayer {
@@ -102,13 +104,14 @@ impl PredLayer {
             channels: r,
             a_channels: a,
             size: cfg.layer_size(l),
+            device: p.device(),
         }
     }
 
     /// Zero state for batch `b` (PredNet starts from zeros; the t = 0 prediction gets no loss).
     pub fn zero_state(&self, b: i64) -> LayerState {
         let (h, w) = self.size;
-        let z = |c| Tensor::zeros([b, c, h, w], (tch::Kind::Float, tch::Device::Cpu));
+        let z = |c| Tensor::zeros([b, c, h, w], (tch::Kind::Float, self.device));
         let n = self.gus.len();
         LayerState {
             h: (0..n).map(|_| z(self.channels)).collect(),

@@ -140,8 +140,8 @@ mod tests {
     /// Intensity-weighted centre of each frame, `[N, T, 2]` as (row, col).
     fn centroids(images: &Tensor) -> Tensor {
         let s = images.size();
-        let ys = Tensor::arange(s[2], (Kind::Float, tch::Device::Cpu)).view([1, 1, -1, 1]);
-        let xs = Tensor::arange(s[3], (Kind::Float, tch::Device::Cpu)).view([1, 1, 1, -1]);
+        let ys = Tensor::arange(s[2], (Kind::Float, images.device())).view([1, 1, -1, 1]);
+        let xs = Tensor::arange(s[3], (Kind::Float, images.device())).view([1, 1, 1, -1]);
         let mass = images.sum_dim_intlist([2, 3].as_slice(), false, Kind::Float);
         let cy = (images * ys).sum_dim_intlist([2, 3].as_slice(), false, Kind::Float) / &mass;
         let cx = (images * xs).sum_dim_intlist([2, 3].as_slice(), false, Kind::Float) / &mass;

@@ -126,6 +126,30 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         "the restarted predictor got the newest weights at once:\n{predictor_log}"
     );
 
+    // `mta status` sees the restarted stack from its stats topic: every process once restarted,
+    // stepping at 50 Hz (each process's first message has no rate yet: ask again).
+    let mut status = serde_json::Value::Null;
+    for _ in 0..6 {
+        let out = std::process::Command::new(bin("mta"))
+            .args(["status", "--json", "--listen-s", "3", "--namespace", &ns])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "mta status: {}", String::from_utf8_lossy(&out.stderr));
+        status = serde_json::from_slice(&out.stdout).unwrap();
+        sup.poll().unwrap();
+        if status.pointer("/processes/simulator/rate_hz").is_some_and(|r| r.is_number()) {
+            break;
+        }
+    }
+    for p in ["simulator", "predictor", "trainer"] {
+        assert_eq!(status.pointer(&format!("/processes/{p}/restarts")), Some(&1.into()), "{status:#}");
+        assert_eq!(status.pointer(&format!("/processes/{p}/pid")), Some(&sup.pid(p).unwrap().into()), "{status:#}");
+    }
+    let rate = status.pointer("/processes/simulator/rate_hz").and_then(|r| r.as_f64()).unwrap_or(0.0);
+    assert!((40.0..60.0).contains(&rate), "the simulator steps at 50 Hz: {status:#}");
+    assert!(status.pointer("/processes/predictor/detail/driver").is_some_and(|d| d.is_string()), "{status:#}");
+    assert_eq!(status.pointer("/nodes/dead"), Some(&serde_json::json!([])), "{status:#}");
+
     // Frozen for 1 s: the simulator misses the deadlines, its fallback drives, the loop recovers.
     let pid = sup.pid("predictor").unwrap() as i32;
     // SAFETY: signals to a child of this test.

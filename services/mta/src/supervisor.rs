@@ -131,6 +131,8 @@ impl Supervisor {
         cmd.process_group(0)
             .args(&c.args)
             .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+            // The process reports it on the stats topic (`mta status`).
+            .env(mtanet_ipc::stats::RESTARTS_ENV, c.restarts.to_string())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
         if let Some(prio) = c.spec.realtime_priority {
@@ -229,9 +231,9 @@ impl Supervisor {
             self.note(&format!("{e:?}"));
         }
         for name in to_start {
-            let pid = self.start(&name)?;
             let i = self.index(&name)?;
             self.children[i].restarts += 1;
+            let pid = self.start(&name)?;
             let restarts = self.children[i].restarts;
             self.note(&format!("restarted {name} (pid {pid}, restart {restarts})"));
             events.push(Event::Restarted { name, pid, restarts });

@@ -4,6 +4,7 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
+use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
@@ -21,6 +22,7 @@ pub struct Ports {
     pub observations: Receiver<Observation>,
     pub commands: Sender<Command>,
     pub weights: WeightsReceiver,
+    pub stats: std::cell::RefCell<StatsPublisher>,
 }
 
 impl Ports {
@@ -29,6 +31,7 @@ impl Ports {
             observations: Receiver::open(node, names::OBSERVATION, TopicShape::STEP)?,
             commands: Sender::open(node, names::COMMAND, TopicShape::STEP)?,
             weights: WeightsReceiver::open(node)?,
+            stats: StatsPublisher::open(node, "predictor")?.into(),
         })
     }
 }
@@ -75,6 +78,8 @@ struct StepStats {
     age: LatencyStats,
     compute: LatencyStats,
     plan: LatencyStats,
+    /// The source of the last command sent.
+    source: u32,
 }
 
 pub fn run(ports: &Ports, cfg: &PredictorConfig, shutdown: &Shutdown) -> anyhow::Result<Summary> {
@@ -124,6 +129,11 @@ pub fn run_with(
         // The timeout bounds how long a signal waits to be noticed.
         waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
         watchdog.pet();
+        ports.stats.borrow_mut().tick(summary.commands_sent, || stats.compute.summary(), |s| {
+            s.laps_or_driver_or_fill = stats.source;
+            s.faults = policy.stats().fallbacks.min(u32::MAX as u64) as u32;
+            s.quality = policy.model.as_ref().and_then(|m| m.error_ratio()).map_or(f32::NAN, |r| r as f32);
+        })?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             let ratio = policy.model.as_ref().and_then(|m| m.error_ratio());
@@ -195,6 +205,7 @@ fn answer_observations(
             c.stamp_ns = stamp::monotonic_ns();
         })?;
         summary.commands_sent += 1;
+        stats.source = source_of(decision.driver) as u32;
         stats.compute.record_ns(compute_ns);
         stats.age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
         if let Some((_, plan)) = &decision.plan {

@@ -10,6 +10,7 @@ use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::ports::{Loaned, Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
+use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::{
     Command, CommandSource, Observation, REPLAY_STEPS, ReplayChunk, TrainerStatus, names, stamp,
 };
@@ -28,6 +29,7 @@ pub struct Ports {
     pub commands: Receiver<Command>,
     pub replay: Sender<ReplayChunk>,
     pub trainer_status: Receiver<TrainerStatus>,
+    pub stats: std::cell::RefCell<StatsPublisher>,
 }
 
 impl Ports {
@@ -37,6 +39,7 @@ impl Ports {
             commands: Receiver::open(node, names::COMMAND, TopicShape::STEP)?,
             replay: Sender::open(node, names::REPLAY, TopicShape::REPLAY)?,
             trainer_status: Receiver::open(node, names::TRAINER_STATUS, TopicShape::STATUS)?,
+            stats: StatsPublisher::open(node, "simulator")?.into(),
         })
     }
 }
@@ -265,6 +268,10 @@ pub fn run(
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }
         watchdog.pet();
+        ports.stats.borrow_mut().tick(step, || step_time.summary(), |s| {
+            s.laps_or_driver_or_fill = drive.laps();
+            s.faults = summary.deadline_misses.min(u32::MAX as u64) as u32;
+        })?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             tracing::info!(

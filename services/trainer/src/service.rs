@@ -4,6 +4,7 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
+use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
@@ -21,6 +22,7 @@ pub struct Ports {
     pub replay: Receiver<ReplayChunk>,
     pub weights: WeightsSender,
     pub status: Sender<TrainerStatus>,
+    pub stats: std::cell::RefCell<StatsPublisher>,
 }
 
 impl Ports {
@@ -29,6 +31,7 @@ impl Ports {
             replay: Receiver::open(node, names::REPLAY, TopicShape::REPLAY)?,
             weights: WeightsSender::open(node)?,
             status: Sender::open(node, names::TRAINER_STATUS, TopicShape::STATUS)?,
+            stats: StatsPublisher::open(node, "trainer")?.into(),
         })
     }
 }
@@ -160,6 +163,11 @@ pub fn run_with(
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
+        ports.stats.borrow_mut().tick(learner.updates(), || update_time.summary(), |s| {
+            s.laps_or_driver_or_fill = buffer.len() as u32;
+            s.faults = buffer.lost().min(u32::MAX as u64) as u32;
+            s.quality = learner.last_loss().map_or(f32::NAN, |l| l as f32);
+        })?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             tracing::info!(
