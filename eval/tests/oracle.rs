@@ -39,7 +39,8 @@ fn oracle_lap(track: &str) {
         "{track}: the oracle completed no lap under active inference: {r:?}"
     );
     assert_eq!(r.lost_events, 0, "{track}: the car was lost: {r:?}");
-    assert!(r.agent.active_inference_steps > 1000, "{track}: {r:?}");
+    // A lap of the shortest track (square) takes ~990 steps: the lap must be active inference's.
+    assert!(r.agent.active_inference_steps > 800, "{track}: {r:?}");
 }
 
 #[test]
