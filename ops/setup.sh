@@ -4,6 +4,7 @@
 #   libtorch 2.13.0 (for tch 0.26)  <- PyPI wheels torch + nvidia-cuda-runtime + nvidia-cuda-cupti
 #   MuJoCo 3.17.0 (for mujoco-rs 7) <- PyPI wheel mujoco
 #   mujoco-compile (MuJoCo 2.2.2)   <- Debian package libmujoco-samples, for the 2.2 scene check
+#   iox2-link-tunnel-zenoh 0.10.0   <- crates.io (cargo install --locked), for a stack on two hosts
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 deps="$root/.deps"
@@ -86,7 +87,25 @@ install_debian() {
   command -v mujoco-compile >/dev/null || { echo "setup: mujoco-compile not found after install" >&2; exit 1; }
 }
 
+# iceoryx2's Zenoh link tunnel (same iceoryx2 0.10 as the workspace): joins the iceoryx2 domains
+# of two hosts (ARCHITECTURE.md "Beyond one machine"; tests/tests/tunnel.rs). Built once with its
+# own lock file; ~10 min on 2 cores, in its own target folder so the workspace's stays untouched.
+install_tunnel() {
+  local dst="$deps/iox2"
+  if [ -f "$dst/.complete" ] && [ -x "$dst/bin/iox2-link-tunnel-zenoh" ]; then
+    log "iox2-link-tunnel-zenoh 0.10.0: present"; return
+  fi
+  log "iox2-link-tunnel-zenoh 0.10.0: building from crates.io (once, ~10 min on 2 cores)"
+  rm -rf "$dst"
+  cargo install --quiet --locked --version 0.10.0 --root "$dst" --target-dir "$deps/stage-iox2" \
+    iceoryx2-integrations-zenoh-link-tunnel-cli
+  rm -rf "$deps/stage-iox2"
+  touch "$dst/.complete"
+  log "iox2-link-tunnel-zenoh: installed in $dst/bin"
+}
+
 install_libtorch
 install_mujoco
 install_debian
+install_tunnel
 log "done"

@@ -83,18 +83,52 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
     name: &str,
     shape: TopicShape,
 ) -> Result<PubSubFactory<ipc::Service, T, ()>, PortError> {
-    node.service_builder(&service_name(name)?)
+    let service = service_name(name)?;
+    let shaped = node
+        .service_builder(&service)
         .publish_subscribe::<T>()
         .enable_safe_overflow(true)
         .subscriber_max_buffer_size(shape.buffer.max(shape.history).max(1))
         .history_size(shape.history)
         .max_subscribers(shape.max_subscribers)
         .max_publishers(shape.max_publishers)
-        .open_or_create()
-        .map_err(|e| PortError::Open {
+        .open_or_create();
+    match shaped {
+        Ok(f) => Ok(f),
+        // A service created elsewhere with smaller queues (a Zenoh tunnel that bridged it before
+        // this process started creates it with its own sizes): use it as it is and say so; a
+        // crash loop would help nobody.
+        Err(e) if format!("{e:?}").contains("DoesNotSupport") => {
+            let f = node
+                .service_builder(&service)
+                .publish_subscribe::<T>()
+                .enable_safe_overflow(true)
+                .subscriber_max_buffer_size(1)
+                .history_size(0)
+                .max_subscribers(1)
+                .max_publishers(1)
+                .open()
+                .map_err(|e2| PortError::Open {
+                    service: name.into(),
+                    detail: format!("{e:?}, and as it is: {e2:?}"),
+                })?;
+            let c = f.static_config();
+            tracing::warn!(
+                service = name,
+                wanted = ?shape,
+                buffer = c.subscriber_max_buffer_size(),
+                history = c.history_size(),
+                publishers = c.max_publishers(),
+                subscribers = c.max_subscribers(),
+                "the service exists with other queue sizes than this process asks for ({e:?}); using them"
+            );
+            Ok(f)
+        }
+        Err(e) => Err(PortError::Open {
             service: name.into(),
             detail: format!("{e:?}"),
-        })
+        }),
+    }
 }
 
 pub(crate) fn open_event(

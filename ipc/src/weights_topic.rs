@@ -31,7 +31,8 @@ fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
         .subscriber_max_buffer_size(1)
         .subscriber_max_borrowed_samples(1)
         .max_subscribers(4)
-        .max_publishers(1)
+        // The trainer, plus a Zenoh tunnel's bridge when the trainer is on another host.
+        .max_publishers(2)
         .open_or_create()
         .map_err(|e| PortError::Open {
             service: names::WEIGHTS.into(),

@@ -88,6 +88,17 @@ impl LiveModel {
         Ok(())
     }
 
+    /// The weights of `other`, decoded elsewhere (a loader thread), copied in place for the same
+    /// network: the recurrent state and statistics carry on. False (nothing changed) for another
+    /// network.
+    pub fn take_weights(&mut self, other: &LiveModel) -> bool {
+        if other.config() != self.config() || self.vs.copy(&other.vs).is_err() {
+            return false;
+        }
+        self.version = other.version;
+        true
+    }
+
     pub fn model(&self) -> &MtaPredNet {
         &self.model
     }
@@ -188,6 +199,11 @@ impl Imagined {
             model,
             start: None,
         })
+    }
+
+    /// [`LiveModel::take_weights`] for the planner's copy.
+    pub fn take_weights(&mut self, other: &Imagined) -> bool {
+        other.model.config() == self.model.config() && self.vs.copy(&other.vs).is_ok()
     }
 
     /// New weights (in place for the same network).

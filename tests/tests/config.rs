@@ -38,3 +38,18 @@ fn a_typo_in_a_section_is_an_error_naming_it() {
         "{e}"
     );
 }
+
+#[test]
+fn a_wrong_type_and_a_bad_stack_entry_are_errors_naming_the_key() {
+    let f = ConfigFile::parse("[trainer]\npublish_every_updates = \"ten\"\n", Path::new("y.toml")).unwrap();
+    let e = f.section::<mtanet_trainer::config::TrainerConfig>("trainer").unwrap_err().to_string();
+    assert!(e.contains("publish_every_updates") && e.contains("[trainer]") && e.contains("y.toml"), "{e}");
+    let f = ConfigFile::parse(
+        "[[stack.process]]\nname = \"simulator\"\nbinary = \"mta-simulator\"\nrealtime_priority = 120\n",
+        Path::new("z.toml"),
+    )
+    .unwrap();
+    let stack: mtanet_ipc::stack::StackConfig = f.section("stack").unwrap();
+    let e = stack.validate().unwrap_err();
+    assert!(e.contains("realtime_priority") && e.contains("simulator"), "{e}");
+}

@@ -3,5 +3,6 @@
 //! model the trainer sends is trusted, then active inference planning through it.
 
 pub mod config;
+pub mod loader;
 pub mod policy;
 pub mod service;

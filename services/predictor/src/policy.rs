@@ -2,7 +2,6 @@
 //! weights as its world model, planning on a thread of its own. Weights are checked whole and
 //! against the wire contract before they replace anything; a bad blob leaves the car as it was.
 
-use std::sync::Arc;
 
 use anyhow::ensure;
 use mtanet_control::{Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, Threaded, Tick};
@@ -99,41 +98,32 @@ impl Policy {
             .with_context(|| format!("the checkpoint {}", path.display()))
     }
 
-    /// New weights from the trainer (`probe`: its counterfactual probe, NaN if none). Returns
-    /// the error if they were refused; the previous model then keeps driving.
+    /// New weights from the trainer (`probe`: its counterfactual probe, NaN if none), decoded
+    /// here. Returns the error if they were refused; the previous model then keeps driving.
     pub fn load_weights(&mut self, bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<()> {
-        let probe = probe.is_finite().then_some(f64::from(probe));
-        // Decode and check completely before anything is replaced.
-        let fresh = LiveModel::from_bytes(bytes, version)?;
-        check_wire_contract(fresh.config())?;
-        match (self.model.as_mut(), self.planner.as_ref()) {
-            (Some(model), Some(planner)) if model.config() == fresh.config() => {
-                model.update(bytes, version)?;
-                let shared: Arc<[u8]> = bytes.into();
+        self.install(prepare(bytes, version, probe)?)
+    }
+
+    /// Takes in weights [`prepare`]d elsewhere: for the same network a copy in place (well under
+    /// a millisecond, the recurrent state carries on), otherwise a new model and planner.
+    pub fn install(&mut self, p: Prepared) -> anyhow::Result<()> {
+        let Prepared { model: fresh, imagined, probe, .. } = p;
+        let in_place = self.planner.is_some() && self.model.as_mut().is_some_and(|m| m.take_weights(&fresh));
+        match self.planner.as_ref() {
+            Some(planner) if in_place => {
                 planner.update(move |im| {
-                    if let Err(e) = im.update(&shared) {
-                        tracing::error!("planner could not take the new weights: {e}");
+                    if !im.take_weights(&imagined) {
+                        tracing::error!("the planner could not take the new weights");
                     }
                 })?;
             }
             _ => {
                 // First weights, or another network: a new model and planner.
-                let imagined = Imagined::from_bytes(bytes)?;
                 let planner = Planner::new(&self.cfg.active_inference.planner)?;
                 let (threads, nice) = (self.cfg.torch_threads, self.cfg.planner_nice);
                 self.planner = Some(Threaded::spawn(planner, imagined, move || {
                     tch::set_num_threads(threads);
-                    // Plans are long: under SCHED_FIFO (inherited from a real-time predictor)
-                    // the planner would hold a core from the simulator and the trainer.
-                    // SAFETY: sched_setscheduler(2) with pid 0 changes this thread only.
-                    let normal = libc::sched_param { sched_priority: 0 };
-                    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal) };
-                    // Linux: a thread's niceness is set through its thread id.
-                    // SAFETY: setpriority(2) on this thread only.
-                    let tid = unsafe { libc::gettid() } as libc::id_t;
-                    if unsafe { libc::setpriority(libc::PRIO_PROCESS, tid, nice) } != 0 {
-                        tracing::warn!(nice, "could not lower the planner thread's priority");
-                    }
+                    background_priority(nice, "planner");
                 })?);
                 self.model = Some(fresh);
             }
@@ -142,6 +132,47 @@ impl Policy {
             m.probe = probe;
         }
         Ok(())
+    }
+}
+
+/// Weights decoded and checked, ready for [`Policy::install`].
+pub struct Prepared {
+    model: LiveModel,
+    imagined: Imagined,
+    pub version: u64,
+    probe: Option<f64>,
+    /// Time taken to decode and check them, ms.
+    pub decode_ms: f64,
+}
+
+/// Decodes and checks a checkpoint completely, on any thread (several ms for the default
+/// network: the weights loader does it off the control loop); nothing of a bad one is used.
+pub fn prepare(bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<Prepared> {
+    let t0 = std::time::Instant::now();
+    let model = LiveModel::from_bytes(bytes, version)?;
+    check_wire_contract(model.config())?;
+    let imagined = Imagined::from_bytes(bytes)?;
+    Ok(Prepared {
+        model,
+        imagined,
+        version,
+        probe: probe.is_finite().then_some(f64::from(probe)),
+        decode_ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// For a thread doing long work inside a real-time predictor (planner, weights loader): back to
+/// SCHED_OTHER (it inherited SCHED_FIFO and would hold a core from the simulator and the
+/// trainer), at `nice`.
+pub fn background_priority(nice: i32, what: &str) {
+    let normal = libc::sched_param { sched_priority: 0 };
+    // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal) };
+    // Linux: a thread's niceness is set through its thread id.
+    // SAFETY: setpriority(2) on this thread only.
+    let tid = unsafe { libc::gettid() } as libc::id_t;
+    if unsafe { libc::setpriority(libc::PRIO_PROCESS, tid, nice) } != 0 {
+        tracing::warn!(nice, "could not lower the {what} thread's priority");
     }
 }
 
@@ -225,5 +256,17 @@ mod tests {
         p.load_weights(&small_checkpoint(2, small()), 4, f32::NAN).unwrap();
         let m = p.model.as_ref().unwrap();
         assert_eq!((m.version, m.steps, m.probe), (4, 3, None), "same network: updated in place");
+        // Decoded on another thread (the weights loader), taken in by copying.
+        let bytes = small_checkpoint(3, small());
+        let theirs = bytes.clone();
+        let prepared = std::thread::spawn(move || prepare(&theirs, 5, 0.5)).join().unwrap().unwrap();
+        p.install(prepared).unwrap();
+        let m = p.model.as_ref().unwrap();
+        assert_eq!((m.version, m.steps, m.probe), (5, 3, Some(0.5)), "in place, the state carried on");
+        let direct = LiveModel::from_bytes(&bytes, 5).unwrap();
+        let w = |m: &LiveModel| m.model().layers[0].xhat.ws.shallow_clone();
+        assert!(w(m).equal(&w(&direct)), "the installed weights are the checkpoint's");
+        let earlier = LiveModel::from_bytes(&small_checkpoint(2, small()), 4).unwrap();
+        assert!(!w(m).equal(&w(&earlier)), "and not the previous ones");
     }
 }

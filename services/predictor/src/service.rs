@@ -16,6 +16,7 @@ use mtanet_ipc::{Command, Observation, names, stamp};
 use serde::{Deserialize, Serialize};
 
 use crate::config::PredictorConfig;
+use crate::loader::Loader;
 use crate::policy::{Policy, source_of};
 
 pub struct Ports {
@@ -102,6 +103,7 @@ pub fn run_with(
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
     let mut failure: Option<anyhow::Error> = None;
+    let loader = Loader::spawn(cfg.planner_nice)?;
 
     while !shutdown.requested() && failure.is_none() {
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
@@ -114,7 +116,7 @@ pub fn run_with(
                     &mut stats,
                 )
             } else if id.has_event_from(&weights_guard) {
-                receive_weights(ports, &mut policy, &mut summary)
+                receive_weights(ports, &loader, &mut summary)
             } else {
                 Ok(())
             };
@@ -128,6 +130,7 @@ pub fn run_with(
         };
         // The timeout bounds how long a signal waits to be noticed.
         waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
+        install_weights(&loader, &mut policy, &mut summary)?;
         watchdog.pet();
         ports.stats.borrow_mut().tick(summary.commands_sent, || stats.compute.summary(), |s| {
             s.laps_or_driver_or_fill = stats.source;
@@ -219,31 +222,35 @@ fn answer_observations(
     Ok(())
 }
 
-fn receive_weights(
-    ports: &Ports,
-    policy: &mut Policy,
-    summary: &mut Summary,
-) -> anyhow::Result<()> {
-    let outcome = ports.weights.latest(|h, bytes| {
-        let result = policy.load_weights(bytes, h.version, h.probe);
-        (h.version, h.train_step, bytes.len(), result)
-    })?;
-    if let Some((version, train_step, len, result)) = outcome {
+/// Hands a checkpoint from the weights topic to the loader (decoding it here would stall the
+/// control loop for several ms).
+fn receive_weights(ports: &Ports, loader: &Loader, summary: &mut Summary) -> anyhow::Result<()> {
+    if let Some(r) = ports.weights.latest(|h, bytes| loader.submit(bytes, h.version, h.probe))? {
+        r?;
         summary.weights_received += 1;
-        match result {
-            Ok(()) => {
+    }
+    Ok(())
+}
+
+/// Takes in the checkpoints the loader has decoded: a copy in place, between two steps.
+fn install_weights(loader: &Loader, policy: &mut Policy, summary: &mut Summary) -> anyhow::Result<()> {
+    while let Some((version, prepared)) = loader.try_take() {
+        let t0 = Instant::now();
+        let outcome = prepared.and_then(|p| {
+            let decode_ms = p.decode_ms;
+            policy.install(p).map(|()| decode_ms)
+        });
+        match outcome {
+            Ok(decode_ms) => {
                 summary.model_version = version;
+                let install_ms = t0.elapsed().as_secs_f64() * 1e3;
                 let probe = policy.model.as_ref().and_then(|m| m.probe);
-                tracing::info!(version, train_step, bytes = len, ?probe, "weights loaded");
+                tracing::info!(version, ?probe, decode_ms, install_ms, "weights loaded");
             }
             Err(e) => {
                 // A damaged or mismatched checkpoint must not stop the car: keep what we had.
                 summary.weights_rejected += 1;
-                tracing::error!(
-                    version,
-                    bytes = len,
-                    "rejected weights, keeping the previous model: {e:#}"
-                );
+                tracing::error!(version, "rejected weights, keeping the previous model: {e:#}");
             }
         }
     }

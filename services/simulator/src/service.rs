@@ -195,6 +195,10 @@ pub fn run(
                     summary.deadline_misses += 1;
                 }
                 consecutive_misses += 1;
+                if consecutive_misses == 1 {
+                    // Once per run of misses: a frozen peer must not flood the log.
+                    tracing::warn!(step, wait_ms = command_wait.as_secs_f64() * 1e3, policy = ?cfg.on_missed_command, "no command in time for this step");
+                }
                 if consecutive_misses >= MISSES_BEFORE_CLEANUP {
                     // A predictor killed with SIGKILL still counts as connected until its node is
                     // cleaned; without this every later step would wait the full timeout.
