@@ -23,7 +23,9 @@ type Factory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
 const INITIAL_MAX_BYTES: usize = 4 << 20;
 
 fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
-    node.service_builder(&service_name(names::WEIGHTS)?)
+    let name = service_name(names::WEIGHTS)?;
+    let shaped = node
+        .service_builder(&name)
         .publish_subscribe::<[u8]>()
         .user_header::<WeightsHeader>()
         .enable_safe_overflow(true)
@@ -33,11 +35,42 @@ fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
         .max_subscribers(4)
         // The trainer, plus a Zenoh tunnel's bridge when the trainer is on another host.
         .max_publishers(2)
-        .open_or_create()
-        .map_err(|e| PortError::Open {
+        .open_or_create();
+    match shaped {
+        Ok(f) => Ok(f),
+        // Created by a Zenoh tunnel with its own sizes (history 0 was seen): take it as it is,
+        // as `ports` does; a late predictor then waits for the next publish.
+        Err(e) if format!("{e:?}").contains("DoesNotSupport") => {
+            let f = node
+                .service_builder(&name)
+                .publish_subscribe::<[u8]>()
+                .user_header::<WeightsHeader>()
+                .enable_safe_overflow(true)
+                .history_size(0)
+                .subscriber_max_buffer_size(1)
+                .subscriber_max_borrowed_samples(1)
+                .max_subscribers(1)
+                .max_publishers(1)
+                .open()
+                .map_err(|e2| PortError::Open {
+                    service: names::WEIGHTS.into(),
+                    detail: format!("{e:?}, and as it is: {e2:?}"),
+                })?;
+            let c = f.static_config();
+            tracing::warn!(
+                service = names::WEIGHTS,
+                history = c.history_size(),
+                publishers = c.max_publishers(),
+                subscribers = c.max_subscribers(),
+                "the service exists with other sizes than this process asks for ({e:?}); using them"
+            );
+            Ok(f)
+        }
+        Err(e) => Err(PortError::Open {
             service: names::WEIGHTS.into(),
             detail: format!("{e:?}"),
-        })
+        }),
+    }
 }
 
 fn err(op: &'static str, e: impl core::fmt::Debug) -> PortError {
