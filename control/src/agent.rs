@@ -12,192 +12,15 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use serde::{Deserialize, Serialize};
-
-use crate::cost::{Cost, CostConfig};
+use crate::cost::Cost;
 use crate::drive::{Drive, Wheels, mean_wheels};
-use crate::planner::{Outcome, PlannerConfig};
+use crate::planner::Outcome;
 use crate::preference::{FrameShape, PreferenceLearner};
 use crate::reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
 use crate::worker::{PlanJob, PlanService};
 
-/// Who decided a command.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Driver {
-    Reactive,
-    /// A random exploration segment while the reactive rule drives.
-    Exploration,
-    ActiveInference,
-    /// The reactive rule after the line was lost under active inference.
-    Fallback,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct AgentConfig {
-    /// Drive by active inference once the model is trusted (otherwise only the reactive rule).
-    pub enabled: bool,
-    /// Trust the model once its next-frame error is below `trust_ratio` x copy-last...
-    pub trust_ratio: f64,
-    /// ...after this many model steps since its weights were loaded...
-    pub trust_after_steps: u64,
-    /// ...and its counterfactual probe (rank correlation) is at least this (-1: not needed).
-    pub min_probe: f64,
-    /// Stop trusting it when its error has stayed above `distrust_ratio` x copy-last for
-    /// `distrust_after_steps` model steps (the ratio swings when the car slows down: copying
-    /// the last frame is then nearly right).
-    pub distrust_ratio: f64,
-    pub distrust_after_steps: u64,
-    /// Under active inference, hand over to the reactive fallback when the line has been lost
-    /// this long (no line sensor on and no line in the near half of the camera's view),
-    /// seconds...
-    pub fallback_after_s: f32,
-    /// ...and take over again once the line has been found again for this long (and the middle
-    /// sensor is on it).
-    pub resume_after_s: f32,
-    /// Centred frames needed before the preference is used, and the newest kept.
-    pub preference_frames: usize,
-    pub preference_capacity: usize,
-    /// Seconds only the middle line sensor must have been on before a frame counts as centred.
-    pub preference_steady_s: f32,
-    /// Real time: how long the first step of a segment waits for its plan before it counts as
-    /// late (the previous plan's next segment is used). Lockstep waits up to `lockstep_wait_ms`.
-    pub plan_wait_ms: f64,
-    pub lockstep_wait_ms: f64,
-    pub cost: CostConfig,
-    pub planner: PlannerConfig,
-}
-
-impl Default for AgentConfig {
-    fn default() -> Self {
-        Self {
-            enabled: true,
-            trust_ratio: 0.8,
-            trust_after_steps: 25,
-            min_probe: 0.7,
-            distrust_ratio: 1.5,
-            distrust_after_steps: 50,
-            fallback_after_s: 0.5,
-            resume_after_s: 0.5,
-            preference_frames: 300,
-            preference_capacity: 2000,
-            preference_steady_s: 0.0,
-            plan_wait_ms: 2.0,
-            lockstep_wait_ms: 2000.0,
-            cost: CostConfig::default(),
-            planner: PlannerConfig::default(),
-        }
-    }
-}
-
-/// One control step's input.
-#[derive(Debug, Clone, Copy)]
-pub struct Tick<'a> {
-    pub episode: u32,
-    pub frame: &'a [f32],
-    pub line: [bool; 3],
-    /// The command applied during the step that led to this frame.
-    pub applied: Wheels,
-    /// The simulator waits for every command (no deadline to keep).
-    pub lockstep: bool,
-}
-
-/// How far the world model can be trusted.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Health {
-    /// Recent next-frame error over the copy-last-frame error.
-    pub model_over_copy: Option<f64>,
-    /// Model steps since its weights were loaded.
-    pub model_steps: u64,
-    /// Counterfactual probe of the weights in use (rank correlation).
-    pub probe: Option<f64>,
-}
-
-impl Health {
-    /// For a model that is the world itself.
-    pub const PERFECT: Health = Health {
-        model_over_copy: Some(0.0),
-        model_steps: u64::MAX,
-        probe: Some(1.0),
-    };
-}
-
-/// The world model as the agent uses it.
-pub trait AgentModel {
-    type Snapshot;
-    /// Control steps per model step; `None` while there is no model.
-    fn frame_skip(&self) -> Option<usize>;
-    /// One model step with the frame seen and the segment's mean command.
-    fn observe(&mut self, frame: &[f32], action: Wheels) -> anyhow::Result<()>;
-    /// A new episode: forget the past.
-    fn reset(&mut self);
-    /// The state after the latest observation, for a plan to start from.
-    fn snapshot(&mut self) -> anyhow::Result<Self::Snapshot>;
-    fn health(&self) -> Health;
-}
-
-/// No world model yet (the predictor before the first weights): the agent only drives by rule.
-pub struct Blind;
-
-impl AgentModel for Blind {
-    type Snapshot = ();
-    fn frame_skip(&self) -> Option<usize> {
-        None
-    }
-    fn observe(&mut self, _: &[f32], _: Wheels) -> anyhow::Result<()> {
-        Ok(())
-    }
-    fn reset(&mut self) {}
-    fn snapshot(&mut self) -> anyhow::Result<()> {
-        Ok(())
-    }
-    fn health(&self) -> Health {
-        Health::default()
-    }
-}
-
-/// Plans nothing (goes with [`Blind`]).
-pub struct NoPlans;
-
-impl PlanService<()> for NoPlans {
-    fn submit(&mut self, _: PlanJob<()>) -> anyhow::Result<()> {
-        anyhow::bail!("no world model to plan with")
-    }
-    fn wait(&mut self, _: Duration) -> Option<crate::worker::PlanDone> {
-        None
-    }
-    fn idle(&self) -> bool {
-        true
-    }
-}
-
-/// What the agent decided for one step.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Decision {
-    pub wheels: Wheels,
-    pub driver: Driver,
-    /// The plan taken up at this step, if any (with its compute time).
-    pub plan: Option<(Outcome, Duration)>,
-}
-
-/// Counters for reports.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct AgentStats {
-    pub reactive_steps: u64,
-    pub exploration_steps: u64,
-    pub active_inference_steps: u64,
-    pub fallback_steps: u64,
-    /// Switches to active inference, and back to the reactive rule because trust was lost.
-    pub switches_to_active_inference: u64,
-    pub switches_to_reactive: u64,
-    /// Times the line was lost under active inference and the fallback took over.
-    pub fallbacks: u64,
-    pub plans: u64,
-    /// Segments whose plan was not ready in time (the previous plan's next segment drove).
-    pub late_plans: u64,
-    pub plan_errors: u64,
-}
+mod types;
+pub use types::*;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Mode {
@@ -328,7 +151,8 @@ impl Agent {
         self.found_ticks = if lost { 0 } else { self.found_ticks + 1 };
 
         let skip = model.frame_skip();
-        let model_tick = skip.is_some_and(|s| self.ticks_in_segment == 0 || self.ticks_in_segment >= s);
+        let model_tick =
+            skip.is_some_and(|s| self.ticks_in_segment == 0 || self.ticks_in_segment >= s);
         if model_tick {
             // The first frame of an episode follows the reset's zero command.
             let action = mean_wheels(&self.applied);
@@ -348,8 +172,13 @@ impl Agent {
         }
 
         // Losing the line under active inference hands over to the fallback at once.
-        if self.mode == Mode::ActiveInference && self.lost_ticks >= self.ticks(self.cfg.fallback_after_s) {
-            tracing::warn!(segment = self.segment, "line lost under active inference: the reactive fallback drives");
+        if self.mode == Mode::ActiveInference
+            && self.lost_ticks >= self.ticks(self.cfg.fallback_after_s)
+        {
+            tracing::warn!(
+                segment = self.segment,
+                "line lost under active inference: the reactive fallback drives"
+            );
             self.mode = Mode::Fallback;
             self.stats.fallbacks += 1;
             self.spare.clear();
@@ -357,11 +186,16 @@ impl Agent {
         let mut plan = None;
         if model_tick {
             let health = model.health();
-            let bad = health.model_over_copy.is_some_and(|r| r > self.cfg.distrust_ratio);
+            let bad = health
+                .model_over_copy
+                .is_some_and(|r| r > self.cfg.distrust_ratio);
             self.distrust_steps = if bad { self.distrust_steps + 1 } else { 0 };
             match self.mode {
                 Mode::ActiveInference if !self.still_trusted(&health) => {
-                    tracing::warn!(?health, "world model no longer trusted: the reactive rule drives");
+                    tracing::warn!(
+                        ?health,
+                        "world model no longer trusted: the reactive rule drives"
+                    );
                     self.mode = Mode::Reactive;
                     self.stats.switches_to_reactive += 1;
                     self.spare.clear();
@@ -401,7 +235,11 @@ impl Agent {
             }
             Mode::Reactive => {
                 let (w, exploring) = self.explorer.act(self.reactive.act(t.line));
-                let d = if exploring { Driver::Exploration } else { Driver::Reactive };
+                let d = if exploring {
+                    Driver::Exploration
+                } else {
+                    Driver::Reactive
+                };
                 self.decided(w, d, None)
             }
         })
@@ -443,7 +281,12 @@ impl Agent {
         (p.shape.height / 2..p.shape.height).any(|r| feat.mass[r] >= 0.5 * p.mass_mean[r])
     }
 
-    fn decided(&mut self, wheels: Wheels, driver: Driver, plan: Option<(Outcome, Duration)>) -> Decision {
+    fn decided(
+        &mut self,
+        wheels: Wheels,
+        driver: Driver,
+        plan: Option<(Outcome, Duration)>,
+    ) -> Decision {
         let s = &mut self.stats;
         match driver {
             Driver::Reactive => s.reactive_steps += 1,
@@ -451,7 +294,11 @@ impl Agent {
             Driver::ActiveInference => s.active_inference_steps += 1,
             Driver::Fallback => s.fallback_steps += 1,
         }
-        Decision { wheels, driver, plan }
+        Decision {
+            wheels,
+            driver,
+            plan,
+        }
     }
 
     fn trusted(&self, h: &Health) -> bool {
@@ -473,7 +320,11 @@ impl Agent {
     where
         P: PlanService<S>,
     {
-        let wait_ms = if t.lockstep { self.cfg.lockstep_wait_ms } else { self.cfg.plan_wait_ms };
+        let wait_ms = if t.lockstep {
+            self.cfg.lockstep_wait_ms
+        } else {
+            self.cfg.plan_wait_ms
+        };
         let wanted = self.segment - 1;
         let mut fresh = None;
         if let Some(done) = plans.wait(Duration::from_secs_f64(wait_ms.max(0.0) / 1000.0)) {
@@ -504,7 +355,12 @@ impl Agent {
     }
 
     /// Submits the plan for the segment after this one, if the planner is free.
-    fn submit<M, P>(&mut self, model: &mut M, plans: &mut P, restart: Option<Drive>) -> anyhow::Result<()>
+    fn submit<M, P>(
+        &mut self,
+        model: &mut M,
+        plans: &mut P,
+        restart: Option<Drive>,
+    ) -> anyhow::Result<()>
     where
         M: AgentModel,
         P: PlanService<M::Snapshot>,
@@ -557,227 +413,4 @@ impl Agent {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::planner::Imagination;
-    use crate::preference::tests::line_frame;
-    use crate::worker::{Inline, PlanDone};
-
-    /// A model that counts its steps and reports the health it is given.
-    struct Toy {
-        skip: usize,
-        health: Health,
-        observed: Vec<Wheels>,
-    }
-
-    impl AgentModel for Toy {
-        type Snapshot = f32;
-        fn frame_skip(&self) -> Option<usize> {
-            Some(self.skip)
-        }
-        fn observe(&mut self, _: &[f32], a: Wheels) -> anyhow::Result<()> {
-            self.observed.push(a);
-            Ok(())
-        }
-        fn reset(&mut self) {}
-        fn snapshot(&mut self) -> anyhow::Result<f32> {
-            Ok(0.0)
-        }
-        fn health(&self) -> Health {
-            self.health
-        }
-    }
-
-    /// Imagines the line where it is, whatever the plan: every plan sees the same frames.
-    struct Still;
-
-    impl Imagination for Still {
-        type Start = f32;
-        fn start(&mut self, _: f32, _: Wheels) -> anyhow::Result<()> {
-            Ok(())
-        }
-        fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
-            Ok(plans.iter().map(|p| p.iter().flat_map(|_| line_frame(6.0, 0.0)).collect()).collect())
-        }
-    }
-
-    /// A planner that never finishes in time.
-    struct Never(bool);
-
-    impl PlanService<f32> for Never {
-        fn submit(&mut self, _: PlanJob<f32>) -> anyhow::Result<()> {
-            self.0 = true;
-            Ok(())
-        }
-        fn wait(&mut self, _: Duration) -> Option<PlanDone> {
-            None
-        }
-        fn idle(&self) -> bool {
-            !self.0
-        }
-    }
-
-    fn cfg() -> AgentConfig {
-        AgentConfig {
-            preference_frames: 5,
-            trust_after_steps: 2,
-            ..Default::default()
-        }
-    }
-
-    fn agent(cfg: &AgentConfig) -> Agent {
-        let off = ExplorationConfig { enabled: false, ..Default::default() };
-        Agent::new(cfg, &ReactiveConfig::default(), &off, FrameShape::CAR, 0.02)
-    }
-
-    fn tick<'a>(frame: &'a [f32], line: [bool; 3], applied: Wheels) -> Tick<'a> {
-        Tick { episode: 0, frame, line, applied, lockstep: true }
-    }
-
-    const CENTRED: [bool; 3] = [false, true, false];
-
-    #[test]
-    fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
-        let frame = line_frame(6.0, 0.0);
-        let mut model = Toy { skip: 3, health: Health::default(), observed: Vec::new() };
-        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
-        let mut a = agent(&cfg());
-        let mut applied = [0.0; 2];
-        for _ in 0..30 {
-            let d = a.step(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
-            assert_eq!(d.driver, Driver::Reactive, "an untrusted model never drives");
-            applied = d.wheels;
-        }
-        assert_eq!(model.observed.len(), 10, "a model step every 3 control steps");
-        assert_eq!(model.observed[1], [8.0, 8.0], "the mean command of its segment");
-        model.health = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
-        let mut segments: Vec<Vec<Wheels>> = Vec::new();
-        for k in 0..12 {
-            let d = a.step(&tick(&frame, CENTRED, applied), &mut model, &mut plans).unwrap();
-            assert_eq!(d.driver, Driver::ActiveInference, "step {k}");
-            if k % 3 == 0 {
-                segments.push(Vec::new());
-            }
-            segments.last_mut().unwrap().push(d.wheels);
-            applied = d.wheels;
-        }
-        for s in &segments {
-            assert!(s.iter().all(|w| *w == s[0]), "a command is held over its segment: {s:?}");
-        }
-        assert_eq!(a.stats.switches_to_active_inference, 1);
-        assert_eq!(a.stats.plans, 3, "each later segment takes up the plan made a segment ago");
-        // With the line held in view, only the priors decide: straight on, near the preferred speed.
-        let d = Drive::from_wheels(segments[2][0]);
-        assert!(d.turn.abs() < 2.0 && d.speed > 5.0, "{d:?}");
-    }
-
-    #[test]
-    fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
-        let frame = line_frame(6.0, 0.0);
-        let trusted = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
-        let mut model = Toy { skip: 2, health: trusted, observed: Vec::new() };
-        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
-        let mut a = agent(&cfg());
-        for _ in 0..30 {
-            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-        }
-        assert!(a.driving_by_active_inference());
-        // The bar off the line while the camera still sees it (cutting a bend): not lost.
-        for _ in 0..40 {
-            a.step(&tick(&frame, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
-        }
-        assert!(a.driving_by_active_inference(), "the camera still follows the line");
-        // 0.5 s with neither a line sensor on nor a line in view (25 steps), then the fallback.
-        let floor = [0.85f32; 96];
-        let mut drivers = Vec::new();
-        for _ in 0..30 {
-            drivers.push(a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap().driver);
-        }
-        assert_eq!(drivers.iter().filter(|d| **d == Driver::ActiveInference).count(), 24);
-        assert_eq!(drivers.last(), Some(&Driver::Fallback));
-        assert_eq!(a.stats.fallbacks, 1);
-        // Found again for 0.5 s, the middle sensor on it: active inference resumes.
-        let mut back = None;
-        for k in 0..40 {
-            let d = a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-            if d.driver == Driver::ActiveInference {
-                back = Some(k);
-                break;
-            }
-        }
-        let k = back.expect("active inference resumes");
-        assert!((24..=26).contains(&k), "after ~25 steps with the line found, at a model step: {k}");
-        assert_eq!(a.stats.switches_to_active_inference, 2);
-    }
-
-    #[test]
-    fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
-        let frame = line_frame(6.0, 0.0);
-        let trusted = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
-        let mut model = Toy { skip: 2, health: trusted, observed: Vec::new() };
-        let mut a = agent(&cfg());
-        let mut never = Never(false);
-        let mut last = [0.0; 2];
-        for _ in 0..40 {
-            let d = a.step(&Tick { lockstep: false, ..tick(&frame, CENTRED, last) }, &mut model, &mut never).unwrap();
-            last = d.wheels;
-        }
-        assert!(a.driving_by_active_inference(), "planning late is no reason to stop");
-        assert!(a.stats.late_plans >= 5, "{:?}", a.stats);
-        assert_eq!(a.stats.plans, 0);
-        assert_eq!(last, [8.0, 8.0], "the command held from the switch");
-    }
-
-    #[test]
-    fn takes_over_only_with_the_car_on_the_line() {
-        let frame = line_frame(6.0, 0.0);
-        let trusted = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.9) };
-        let mut model = Toy { skip: 1, health: trusted, observed: Vec::new() };
-        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
-        let mut a = agent(&cfg());
-        for _ in 0..10 {
-            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-        }
-        // Trusted and a preference learnt, but the line is gone (an exploration segment).
-        let floor = [0.85f32; 96];
-        for _ in 0..40 {
-            let d = a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans).unwrap();
-            assert_ne!(d.driver, Driver::ActiveInference, "never taking over off the line");
-        }
-        let mut k = 0;
-        while !a.driving_by_active_inference() {
-            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-            k += 1;
-            assert!(k < 30, "takes over once the line has been found for 0.5 s");
-        }
-        assert_eq!(k, 25);
-        assert_eq!(a.stats.fallbacks, 0);
-    }
-
-    #[test]
-    fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
-        let frame = line_frame(6.0, 0.0);
-        let low_probe = Health { model_over_copy: Some(0.3), model_steps: 10, probe: Some(0.2) };
-        let mut model = Toy { skip: 1, health: low_probe, observed: Vec::new() };
-        let mut plans = Inline::new(crate::Planner::new(&PlannerConfig::default()).unwrap(), Still);
-        let mut a = agent(&cfg());
-        for _ in 0..30 {
-            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-        }
-        assert!(!a.driving_by_active_inference(), "a probe below min_probe is not trusted");
-        model.health.probe = Some(0.9);
-        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-        assert!(a.driving_by_active_inference());
-        // A ratio above distrust_ratio for fewer than distrust_after_steps model steps is a swing.
-        model.health.model_over_copy = Some(2.0);
-        for _ in 0..40 {
-            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-        }
-        assert!(a.driving_by_active_inference());
-        for _ in 0..20 {
-            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans).unwrap();
-        }
-        assert!(!a.driving_by_active_inference(), "sustained: the rule drives again");
-        assert_eq!(a.stats.switches_to_reactive, 1);
-    }
-}
+mod tests;

@@ -99,7 +99,13 @@ impl Cost {
             }
             // Not expected for a floor > 0; fall back to the floor alone.
             Err(_) => (0..rows * rows)
-                .map(|ij| if ij / rows == ij % rows { (1.0 / floor) as f32 } else { 0.0 })
+                .map(|ij| {
+                    if ij / rows == ij % rows {
+                        (1.0 / floor) as f32
+                    } else {
+                        0.0
+                    }
+                })
                 .collect(),
         };
         let mut cost = Self {
@@ -169,8 +175,12 @@ impl Cost {
                 .sum::<f32>()
             / n;
         let turn_scale = c.max_turn.max(1e-3);
-        let effort =
-            c.turn_weight * plan.iter().map(|d| (d.turn / turn_scale).powi(2)).sum::<f32>() / n;
+        let effort = c.turn_weight
+            * plan
+                .iter()
+                .map(|d| (d.turn / turn_scale).powi(2))
+                .sum::<f32>()
+            / n;
         let mut prev = before;
         let mut change = 0.0;
         for d in plan {
@@ -206,7 +216,10 @@ mod tests {
             last = r;
         }
         let lost = cost.risk(&[0.85; 96]);
-        assert!(lost > last, "line out of view ({lost}) must cost most ({last})");
+        assert!(
+            lost > last,
+            "line out of view ({lost}) must cost most ({last})"
+        );
         let mut last = centred;
         for slope in [0.3, 0.6, 0.9] {
             let r = cost.risk(&line_frame(6.0, slope));

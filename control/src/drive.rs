@@ -56,7 +56,11 @@ mod tests {
     #[test]
     fn speed_and_turn_round_trip_through_wheels() {
         let d = Drive::new(8.0, 2.0);
-        assert_eq!(d.wheels(), [6.0, 10.0], "positive turn: right wheel faster, turns left");
+        assert_eq!(
+            d.wheels(),
+            [6.0, 10.0],
+            "positive turn: right wheel faster, turns left"
+        );
         assert_eq!(Drive::from_wheels(d.wheels()), d);
         assert_eq!(mean_wheels(&[[1.0, 2.0], [3.0, 6.0]]), [2.0, 4.0]);
         assert_eq!(mean_wheels(&[]), [0.0, 0.0]);

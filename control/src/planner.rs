@@ -169,7 +169,15 @@ impl Planner {
                 .map(|(i, (f, p))| {
                     let t = cost.evaluate(f, p, before);
                     // A NaN from a broken model must never win.
-                    (if t.total.is_finite() { t.total } else { f32::INFINITY }, i, t)
+                    (
+                        if t.total.is_finite() {
+                            t.total
+                        } else {
+                            f32::INFINITY
+                        },
+                        i,
+                        t,
+                    )
                 })
                 .collect();
             scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -186,7 +194,11 @@ impl Planner {
                 let n = elites.len() as f32;
                 let ms = elites.iter().map(|p| p[s].speed).sum::<f32>() / n;
                 let mt = elites.iter().map(|p| p[s].turn).sum::<f32>() / n;
-                let vs = elites.iter().map(|p| (p[s].speed - ms).powi(2)).sum::<f32>() / n;
+                let vs = elites
+                    .iter()
+                    .map(|p| (p[s].speed - ms).powi(2))
+                    .sum::<f32>()
+                    / n;
                 let vt = elites.iter().map(|p| (p[s].turn - mt).powi(2)).sum::<f32>() / n;
                 mean[s] = Drive::new(ms, mt);
                 // Keep some spread so later iterations still search.
@@ -275,7 +287,10 @@ mod tests {
         toy.start(toy.start, [8.0, 8.0]).unwrap();
         let out = planner.plan(&mut toy, &cost, Drive::new(8.0, 0.0)).unwrap();
         assert!(out.plan[0].turn > 2.0, "{out:?}");
-        assert!(out.plan[0].speed > 5.0, "the progress prior keeps it moving: {out:?}");
+        assert!(
+            out.plan[0].speed > 5.0,
+            "the progress prior keeps it moving: {out:?}"
+        );
         assert_eq!(out.evaluations, 96);
         // Same seed, same inputs: the same plan.
         let mut again = Planner::new(&PlannerConfig::default()).unwrap();

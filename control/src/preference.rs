@@ -50,7 +50,11 @@ impl Contrast {
         let at = |q: f64| pixels[((pixels.len() - 1) as f64 * q).round() as usize];
         let floor = at(0.5);
         let (dark, bright) = (at(0.05), at(0.95));
-        let line = if floor - dark >= bright - floor { dark } else { bright };
+        let line = if floor - dark >= bright - floor {
+            dark
+        } else {
+            bright
+        };
         let amplitude = floor - line;
         (amplitude.abs() >= min_amplitude).then_some(Self { floor, amplitude })
     }
@@ -91,7 +95,8 @@ impl LineFeature {
             let (mut m, mut moment) = (0.0f32, 0.0f32);
             for (c, &g) in row.iter().enumerate() {
                 let x = (c as f32 + 0.5 - half) / half;
-                let d = contrast.lineness(g) * (-(x - centre).powi(2) / (2.0 * window * window)).exp();
+                let d =
+                    contrast.lineness(g) * (-(x - centre).powi(2) / (2.0 * window * window)).exp();
                 m += d;
                 moment += d * x;
             }
@@ -156,7 +161,11 @@ impl PreferenceLearner {
     /// Offers a frame with the line sensors' reading; only centred frames (only the middle
     /// sensor on, steadily) are kept. Returns whether it was kept.
     pub fn observe(&mut self, frame: &[f32], line_sensors: [bool; 3]) -> bool {
-        self.run = if line_sensors == [false, true, false] { self.run + 1 } else { 0 };
+        self.run = if line_sensors == [false, true, false] {
+            self.run + 1
+        } else {
+            0
+        };
         if self.run < self.steady || frame.len() != self.shape.pixels() {
             return false;
         }
@@ -184,10 +193,15 @@ impl PreferenceLearner {
         let contrast = Contrast::from_pixels(&mut pixels, 0.05)?;
         let rows = self.shape.height;
         // Rows without the line (< half a pixel of it) take no part in the position statistics.
-        let feats: Vec<LineFeature> =
-            self.frames.iter().map(|f| LineFeature::of(f, self.shape, &contrast)).collect();
-        let whole: Vec<&LineFeature> =
-            feats.iter().filter(|f| f.mass.iter().all(|m| *m > 0.5)).collect();
+        let feats: Vec<LineFeature> = self
+            .frames
+            .iter()
+            .map(|f| LineFeature::of(f, self.shape, &contrast))
+            .collect();
+        let whole: Vec<&LineFeature> = feats
+            .iter()
+            .filter(|f| f.mass.iter().all(|m| *m > 0.5))
+            .collect();
         if whole.len() < min_frames.max(2) / 2 {
             return None;
         }
@@ -263,7 +277,10 @@ pub(crate) mod tests {
             assert_eq!(kept, k >= 2, "kept only after 3 centred steps in a row");
         }
         assert!(!p.observe(&line_frame(6.0, 0.0), [false, true, true]));
-        assert!(!p.observe(&line_frame(6.0, 0.0), [false, true, false]), "steadiness restarts");
+        assert!(
+            !p.observe(&line_frame(6.0, 0.0), [false, true, false]),
+            "steadiness restarts"
+        );
         assert_eq!(p.seen(), 6);
         let pref = p.preferred(2).unwrap();
         assert_eq!(pref.frames, 4, "a bounded ring of the newest frames");
@@ -306,7 +323,10 @@ pub(crate) mod tests {
         }
         let feat = LineFeature::of(&f, FrameShape::CAR, &pref.contrast);
         for r in 0..8 {
-            assert!(feat.position[r].abs() < 0.05, "row {r} pulled aside: {feat:?}");
+            assert!(
+                feat.position[r].abs() < 0.05,
+                "row {r} pulled aside: {feat:?}"
+            );
         }
     }
 }

@@ -135,7 +135,9 @@ impl Explorer {
             let c = &self.cfg;
             let secs = self.rng.random_range(c.min_s..=c.max_s.max(c.min_s));
             self.left = (secs / self.period_s).round().max(1.0) as u32;
-            let speed = self.rng.random_range(c.min_speed..=c.max_speed.max(c.min_speed));
+            let speed = self
+                .rng
+                .random_range(c.min_speed..=c.max_speed.max(c.min_speed));
             let turn = self.rng.random_range(-c.max_turn..=c.max_turn);
             self.held = Drive::new(speed, turn).wheels();
         }
@@ -161,7 +163,10 @@ mod tests {
         assert!(l > rr, "line on the right must turn right");
         assert_eq!(r.act([false, true, false]), [8.0, 8.0]);
         let [l, rr] = r.act([false, false, false]);
-        assert!(l > rr, "lost: keep turning toward where the line was last seen");
+        assert!(
+            l > rr,
+            "lost: keep turning toward where the line was last seen"
+        );
     }
 
     #[test]
@@ -184,9 +189,15 @@ mod tests {
         // 1 segment/s of mean 0.25 s: about 20% of the time (a little less: no overlap).
         let share = n as f64 / 20_000.0;
         assert!((0.15..0.25).contains(&share), "share {share}");
-        let other = ExplorationConfig { seed: 1, ..cfg.clone() };
+        let other = ExplorationConfig {
+            seed: 1,
+            ..cfg.clone()
+        };
         assert_ne!(a, run(&other).0);
-        let off = ExplorationConfig { enabled: false, ..cfg };
+        let off = ExplorationConfig {
+            enabled: false,
+            ..cfg
+        };
         assert_eq!(run(&off).1, 0);
     }
 }

@@ -38,7 +38,11 @@ pub trait PlanService<S> {
     fn idle(&self) -> bool;
 }
 
-fn run_job<I: Imagination>(planner: &mut Planner, imagination: &mut I, job: PlanJob<I::Start>) -> PlanDone {
+fn run_job<I: Imagination>(
+    planner: &mut Planner,
+    imagination: &mut I,
+    job: PlanJob<I::Start>,
+) -> PlanDone {
     let t0 = Instant::now();
     if let Some(d) = job.restart {
         planner.reset(d);

@@ -114,7 +114,12 @@ where
     P: PlanService<M::Snapshot>,
 {
     let period = world.config().control_period_s;
-    let mut referee = mtanet_scenes::Referee::new(cfg.reset_after_lost_s, period, cfg.lost_lateral_m, cfg.reverse_reset_m);
+    let mut referee = mtanet_scenes::Referee::new(
+        cfg.reset_after_lost_s,
+        period,
+        cfg.lost_lateral_m,
+        cfg.reverse_reset_m,
+    );
     let wall = Instant::now();
     let mut report = DriveReport::default();
     let mut plan_us = Histogram::<u64>::new(3)?;
@@ -182,7 +187,9 @@ where
             report.lost_events += 1;
             lap_all_ai = false;
         }
-        if cfg.stop_after_ai_laps > 0 && report.laps_under_active_inference >= cfg.stop_after_ai_laps {
+        if cfg.stop_after_ai_laps > 0
+            && report.laps_under_active_inference >= cfg.stop_after_ai_laps
+        {
             break;
         }
     }
@@ -199,19 +206,43 @@ where
 /// Frames and the commands that led to them (`applied[i]`: frame i-1 -> i) from `steps` control
 /// steps of the reactive rule with seeded exploration on `world`, for figures and tests; the car
 /// is put back like in the simulator (a reset starts the recording over).
-pub fn record_reactive(world: &mut World, steps: usize, seed: u64) -> anyhow::Result<(Vec<[f32; 96]>, Vec<[f32; 2]>)> {
-    use mtanet_control::{AgentConfig, Blind, ExplorationConfig, FrameShape, NoPlans, ReactiveConfig};
+pub fn record_reactive(
+    world: &mut World,
+    steps: usize,
+    seed: u64,
+) -> anyhow::Result<(Vec<[f32; 96]>, Vec<[f32; 2]>)> {
+    use mtanet_control::{
+        AgentConfig, Blind, ExplorationConfig, FrameShape, NoPlans, ReactiveConfig,
+    };
     let period = world.config().control_period_s;
-    let cfg = AgentConfig { enabled: false, ..Default::default() };
-    let exploration = ExplorationConfig { seed, ..Default::default() };
-    let mut agent = Agent::new(&cfg, &ReactiveConfig::default(), &exploration, FrameShape::CAR, period as f32);
+    let cfg = AgentConfig {
+        enabled: false,
+        ..Default::default()
+    };
+    let exploration = ExplorationConfig {
+        seed,
+        ..Default::default()
+    };
+    let mut agent = Agent::new(
+        &cfg,
+        &ReactiveConfig::default(),
+        &exploration,
+        FrameShape::CAR,
+        period as f32,
+    );
     let mut referee = mtanet_scenes::Referee::new(3.0, period, 0.1, 0.15);
     let (mut frames, mut applied) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     let mut episode = 0;
     while frames.len() < steps {
         let s = world.sense();
         let a = world.command().map(|v| v as f32);
-        let t = Tick { episode, frame: &s.image, line: s.line, applied: a, lockstep: true };
+        let t = Tick {
+            episode,
+            frame: &s.image,
+            line: s.line,
+            applied: a,
+            lockstep: true,
+        };
         let d = agent.step(&t, &mut Blind, &mut NoPlans)?;
         frames.push(s.image);
         applied.push(a);

@@ -121,7 +121,13 @@ pub fn probe(
         seed: cfg.seed,
         ..Default::default()
     };
-    let mut agent = Agent::new(&driving, &ReactiveConfig::default(), &exploration, FrameShape::CAR, world.config().control_period_s as f32);
+    let mut agent = Agent::new(
+        &driving,
+        &ReactiveConfig::default(),
+        &exploration,
+        FrameShape::CAR,
+        world.config().control_period_s as f32,
+    );
     let mut none = mtanet_control::Inline::new(
         mtanet_control::Planner::new(&agent_cfg.planner)?,
         NoImagination,
@@ -129,7 +135,11 @@ pub fn probe(
     let cands: Vec<Vec<Drive>> = cfg
         .speeds
         .iter()
-        .flat_map(|&v| cfg.turns.iter().map(move |&t| vec![Drive::new(v, t); cfg.horizon.max(1)]))
+        .flat_map(|&v| {
+            cfg.turns
+                .iter()
+                .map(move |&t| vec![Drive::new(v, t); cfg.horizon.max(1)])
+        })
         .collect();
     let (mut rhos, mut rhos_total, mut top2) = (Vec::new(), Vec::new(), 0usize);
     let mut model_ticks = 0usize;

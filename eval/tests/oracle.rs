@@ -2,7 +2,9 @@
 //! of every shipped track: if this fails the cost or the planner is wrong, whatever the learned
 //! model does.
 
-use mtanet_control::{Agent, AgentConfig, ExplorationConfig, FrameShape, Inline, Planner, ReactiveConfig};
+use mtanet_control::{
+    Agent, AgentConfig, ExplorationConfig, FrameShape, Inline, Planner, ReactiveConfig,
+};
 use mtanet_eval::{DriveConfig, OracleImagination, OracleModel, drive};
 use mtanet_scenes::{SceneConfig, World, shipped_track};
 
@@ -19,7 +21,13 @@ fn oracle_lap(track: &str) {
         enabled: false,
         ..Default::default()
     };
-    let mut agent = Agent::new(&cfg, &ReactiveConfig::default(), &off, FrameShape::CAR, 0.02);
+    let mut agent = Agent::new(
+        &cfg,
+        &ReactiveConfig::default(),
+        &off,
+        FrameShape::CAR,
+        0.02,
+    );
     let skip = 5;
     let mut model = OracleModel::new(skip);
     let mut plans = Inline::new(

@@ -138,12 +138,20 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            msg.contains("stack.toml") && msg.contains("[trainr]") && msg.contains("unknown section"),
+            msg.contains("stack.toml")
+                && msg.contains("[trainr]")
+                && msg.contains("unknown section"),
             "{msg}"
         );
         let wrong_type = ConfigFile::parse("[ipc]\nnamespace = 5\n", Path::new("s.toml")).unwrap();
-        let msg = wrong_type.section::<IpcConfig>("ipc").unwrap_err().to_string();
-        assert!(msg.contains("s.toml") && msg.contains("[ipc]") && msg.contains("string"), "{msg}");
+        let msg = wrong_type
+            .section::<IpcConfig>("ipc")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("s.toml") && msg.contains("[ipc]") && msg.contains("string"),
+            "{msg}"
+        );
     }
 
     #[test]

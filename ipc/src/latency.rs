@@ -97,6 +97,9 @@ mod tests {
         assert_eq!(LatencyStats::new().summary().count, 0);
         let h = s.histogram();
         assert_eq!(h.iter().map(|b| b[1]).sum::<f64>(), 1000.0);
-        assert!(h.windows(2).all(|w| w[0][0] < w[1][0]), "bins ascend: {h:?}");
+        assert!(
+            h.windows(2).all(|w| w[0][0] < w[1][0]),
+            "bins ascend: {h:?}"
+        );
     }
 }

@@ -98,7 +98,7 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
         // A service created elsewhere with smaller queues (a Zenoh tunnel that bridged it before
         // this process started creates it with its own sizes): use it as it is and say so; a
         // crash loop would help nobody.
-        Err(e) if format!("{e:?}").contains("DoesNotSupport") => {
+        Err(e) if sized_otherwise(&e) => {
             let f = node
                 .service_builder(&service)
                 .publish_subscribe::<T>()
@@ -129,6 +129,12 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
             detail: format!("{e:?}"),
         }),
     }
+}
+
+/// True when opening failed only because the existing service has other (smaller) sizes than
+/// asked for (`DoesNotSupportRequested...`): it can still be used as it is.
+pub(crate) fn sized_otherwise(e: &impl Debug) -> bool {
+    format!("{e:?}").contains("DoesNotSupport")
 }
 
 pub(crate) fn open_event(

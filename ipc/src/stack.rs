@@ -82,9 +82,24 @@ impl Default for StackConfig {
         };
         Self {
             process: vec![
-                p("trainer", "mta-trainer", "mtanet trainer: online MTA-PredNet training from shared-memory replay", None),
-                p("predictor", "mta-predictor", "mtanet predictor: MTA-PredNet inference and active-inference wheel control", Some(20)),
-                p("simulator", "mta-simulator", "mtanet simulator: the MuJoCo line-tracer world", Some(21)),
+                p(
+                    "trainer",
+                    "mta-trainer",
+                    "mtanet trainer: online MTA-PredNet training from shared-memory replay",
+                    None,
+                ),
+                p(
+                    "predictor",
+                    "mta-predictor",
+                    "mtanet predictor: MTA-PredNet inference and active-inference wheel control",
+                    Some(20),
+                ),
+                p(
+                    "simulator",
+                    "mta-simulator",
+                    "mtanet simulator: the MuJoCo line-tracer world",
+                    Some(21),
+                ),
             ],
         }
     }
@@ -95,25 +110,44 @@ impl StackConfig {
     pub fn validate(&self) -> Result<(), String> {
         let mut names = std::collections::BTreeSet::new();
         for p in &self.process {
-            if p.name.is_empty() || !p.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-') {
-                return Err(format!("stack.process name {:?}: use letters, digits and '-'", p.name));
+            if p.name.is_empty()
+                || !p
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-')
+            {
+                return Err(format!(
+                    "stack.process name {:?}: use letters, digits and '-'",
+                    p.name
+                ));
             }
             if !names.insert(&p.name) {
                 return Err(format!("stack.process name {:?} appears twice", p.name));
             }
             if p.binary.is_empty() || p.binary.contains('/') {
-                return Err(format!("stack.process {:?}: binary must be a file name in target/release", p.name));
+                return Err(format!(
+                    "stack.process {:?}: binary must be a file name in target/release",
+                    p.name
+                ));
             }
             if p.realtime_priority.is_some_and(|q| !(1..=99).contains(&q)) {
-                return Err(format!("stack.process {:?}: realtime_priority must be 1-99", p.name));
+                return Err(format!(
+                    "stack.process {:?}: realtime_priority must be 1-99",
+                    p.name
+                ));
             }
             let r = &p.restart;
             if !(r.backoff_s >= 0.0 && r.max_backoff_s >= r.backoff_s && r.window_s > 0.0) {
-                return Err(format!("stack.process {:?}: restart needs 0 <= backoff_s <= max_backoff_s and window_s > 0", p.name));
+                return Err(format!(
+                    "stack.process {:?}: restart needs 0 <= backoff_s <= max_backoff_s and window_s > 0",
+                    p.name
+                ));
             }
         }
         if !self.process.iter().any(|p| p.binary == "mta-simulator") {
-            return Err("stack.process: the stack needs the simulator (binary mta-simulator)".into());
+            return Err(
+                "stack.process: the stack needs the simulator (binary mta-simulator)".into(),
+            );
         }
         Ok(())
     }
@@ -123,7 +157,9 @@ impl StackConfig {
     /// a core from the trainer the run waits for.
     pub fn for_mode(mut self, realtime: bool) -> Self {
         if !realtime {
-            self.process.iter_mut().for_each(|p| p.realtime_priority = None);
+            self.process
+                .iter_mut()
+                .for_each(|p| p.realtime_priority = None);
         }
         self
     }
@@ -154,9 +190,15 @@ binary = "mta-simulator"
 "#;
         let twice: StackConfig = toml::from_str(text).unwrap();
         assert_eq!(twice.process[0].restart.limit, 2);
-        assert_eq!(twice.process[0].restart.backoff_s, 0.5, "unset keys keep the defaults");
+        assert_eq!(
+            twice.process[0].restart.backoff_s, 0.5,
+            "unset keys keep the defaults"
+        );
         assert!(twice.validate().unwrap_err().contains("twice"));
-        let e = toml::from_str::<StackConfig>("[[process]]\nname = \"x\"\nbinary = \"y\"\nrestrat = {}\n").unwrap_err();
+        let e = toml::from_str::<StackConfig>(
+            "[[process]]\nname = \"x\"\nbinary = \"y\"\nrestrat = {}\n",
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("restrat"), "{e}");
     }
 }

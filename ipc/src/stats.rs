@@ -36,7 +36,10 @@ pub struct StatsPublisher {
 
 impl StatsPublisher {
     pub fn open(node: &Node<ipc::Service>, role: &'static str) -> Result<Self, PortError> {
-        let restarts = std::env::var(RESTARTS_ENV).ok().and_then(|v| v.parse().ok()).unwrap_or(0);
+        let restarts = std::env::var(RESTARTS_ENV)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0);
         Ok(Self {
             sender: Sender::open(node, names::STATS, SHAPE)?,
             role,
@@ -63,7 +66,9 @@ impl StatsPublisher {
         let cpu = cpu_seconds();
         let l = latency();
         let (role, restarts) = (self.role, self.restarts);
-        let rate = self.last_count.map_or(f64::NAN, |c| count.saturating_sub(c) as f64 / dt.as_secs_f64());
+        let rate = self.last_count.map_or(f64::NAN, |c| {
+            count.saturating_sub(c) as f64 / dt.as_secs_f64()
+        });
         let cpu_percent = 100.0 * (cpu - self.last_cpu_s) / dt.as_secs_f64();
         self.sender.send_with(|s| {
             s.stamp_ns = stamp::monotonic_ns();
@@ -74,8 +79,12 @@ impl StatsPublisher {
             s.rate_hz = rate as f32;
             s.cpu_percent = cpu_percent as f32;
             s.rss_kb = rss_kb();
-            (s.p50_us, s.p99_us, s.p999_us, s.max_us) =
-                (l.p50_us as f32, l.p99_us as f32, l.p999_us as f32, l.max_us as f32);
+            (s.p50_us, s.p99_us, s.p999_us, s.max_us) = (
+                l.p50_us as f32,
+                l.p99_us as f32,
+                l.p999_us as f32,
+                l.max_us as f32,
+            );
             s.quality = f32::NAN;
             fill(s);
         })?;
@@ -86,11 +95,16 @@ impl StatsPublisher {
 
 /// User + system CPU time of this process, seconds (`/proc/self/stat`; 0 elsewhere).
 fn cpu_seconds() -> f64 {
-    let Ok(s) = std::fs::read_to_string("/proc/self/stat") else { return 0.0 };
+    let Ok(s) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
     // Fields after the parenthesised name: state is the 3rd field, utime the 14th, stime the 15th.
     let rest = s.rsplit_once(')').map_or("", |r| r.1);
     let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: f64 = [11, 12].iter().filter_map(|&i| f.get(i)?.parse::<f64>().ok()).sum();
+    let ticks: f64 = [11, 12]
+        .iter()
+        .filter_map(|&i| f.get(i)?.parse::<f64>().ok())
+        .sum();
     // SAFETY: sysconf(3) has no preconditions.
     let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
     ticks / hz

@@ -10,7 +10,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 
-use crate::ports::{PortError, open_event, service_name};
+use crate::ports::{PortError, open_event, service_name, sized_otherwise};
 use crate::{WeightsHeader, names, stamp};
 
 type Factory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
@@ -40,7 +40,7 @@ fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
         Ok(f) => Ok(f),
         // Created by a Zenoh tunnel with its own sizes (history 0 was seen): take it as it is,
         // as `ports` does; a late predictor then waits for the next publish.
-        Err(e) if format!("{e:?}").contains("DoesNotSupport") => {
+        Err(e) if sized_otherwise(&e) => {
             let f = node
                 .service_builder(&name)
                 .publish_subscribe::<[u8]>()

@@ -168,7 +168,11 @@ impl ModelConfig {
             return range("action_dim", self.action_dim.to_string(), "must be >= 1");
         }
         if !(1..=100).contains(&self.frame_skip) {
-            return range("frame_skip", self.frame_skip.to_string(), "must be in 1..=100");
+            return range(
+                "frame_skip",
+                self.frame_skip.to_string(),
+                "must be in 1..=100",
+            );
         }
         if self
             .channels

@@ -202,9 +202,8 @@ pub fn glyph_pixels(text: &str, scale: usize) -> impl Iterator<Item = (usize, us
             (0..8usize)
                 .filter(move |gx| glyph[gy] & (1 << gx) != 0)
                 .flat_map(move |gx| {
-                    (0..scale * scale).map(move |k| {
-                        ((i * 8 + gx) * scale + k % scale, gy * scale + k / scale)
-                    })
+                    (0..scale * scale)
+                        .map(move |k| ((i * 8 + gx) * scale + k % scale, gy * scale + k / scale))
                 })
         })
     })

@@ -24,8 +24,8 @@ pub mod figure;
 pub mod layer;
 pub mod live;
 pub mod model;
-pub mod state;
 pub mod sequences;
+pub mod state;
 pub mod synth;
 pub mod train;
 

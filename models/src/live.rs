@@ -114,13 +114,20 @@ impl LiveModel {
 
     /// One model step with `frame` and the mean command that led to it; returns the squared
     /// error of this frame's prediction (made before seeing it).
-    pub fn observe_frame(&mut self, frame: &[f32], action: Wheels) -> Result<f64, crate::ModelError> {
+    pub fn observe_frame(
+        &mut self,
+        frame: &[f32],
+        action: Wheels,
+    ) -> Result<f64, crate::ModelError> {
         let _guard = tch::no_grad_guard();
         let frame = frame_tensor(self.model.config(), frame);
         let action = Tensor::from_slice(&action).view([1, 2]);
         let (state, out) = self.model.f_step(&self.state, &frame, &action)?;
         self.state = state;
-        let mse = (&out.prediction - &frame).square().mean(Kind::Float).double_value(&[]);
+        let mse = (&out.prediction - &frame)
+            .square()
+            .mean(Kind::Float)
+            .double_value(&[]);
         // Scored against copying the last frame, on steps where the view changed: a still view
         // is trivially predicted by copying, and a few of them would swing the ratio for no
         // reason. t = 0 of a fresh state predicts from nothing and is not scored either.
@@ -251,7 +258,11 @@ impl Imagination for Imagined {
         );
         let flat: Vec<f32> = plans.iter().flatten().flat_map(|d| d.wheels()).collect();
         let actions = Tensor::from_slice(&flat).view([k, h, 2]);
-        let mut state = if start.batch() == k { start.shallow_clone() } else { start.expand(k) };
+        let mut state = if start.batch() == k {
+            start.shallow_clone()
+        } else {
+            start.expand(k)
+        };
         let mut predictions = Vec::with_capacity(h as usize);
         for s in 0..h {
             let (next, pred) = self.model.f_imagine_step(&state, &actions.select(1, s))?;
@@ -277,7 +288,15 @@ mod tests {
             a_channels: vec![1, 4, 4],
             ..Default::default()
         };
-        Trainer::new(&cfg, &TrainConfig { seed, ..Default::default() }).checkpoint_bytes(None).unwrap()
+        Trainer::new(
+            &cfg,
+            &TrainConfig {
+                seed,
+                ..Default::default()
+            },
+        )
+        .checkpoint_bytes(None)
+        .unwrap()
     }
 
     fn frame(v: f32) -> Vec<f32> {
@@ -289,7 +308,11 @@ mod tests {
         let mut m = LiveModel::from_bytes(&checkpoint(1), 1).unwrap();
         assert_eq!(m.error_ratio(), None, "no statistics yet");
         for i in 0..5 {
-            assert!(m.observe_frame(&frame(0.2 + 0.1 * i as f32), [8.0, 8.0]).unwrap().is_finite());
+            assert!(
+                m.observe_frame(&frame(0.2 + 0.1 * i as f32), [8.0, 8.0])
+                    .unwrap()
+                    .is_finite()
+            );
         }
         assert!(m.error_ratio().is_some());
         // A still view is not scored (copying the last frame is trivially right there).
@@ -297,25 +320,42 @@ mod tests {
         m.observe_frame(&frame(0.6), [8.0, 8.0]).unwrap();
         assert_eq!((m.model_mse.get(), m.copy_mse.get()), before);
         m.update(&checkpoint(2), 2).unwrap();
-        assert_eq!((m.version, m.steps), (2, 6), "same network: weights swapped, state kept");
+        assert_eq!(
+            (m.version, m.steps),
+            (2, 6),
+            "same network: weights swapped, state kept"
+        );
         let mut bad = checkpoint(3);
         bad.truncate(bad.len() / 2);
         assert!(m.update(&bad, 3).is_err());
-        assert_eq!(m.version, 2, "a damaged checkpoint leaves the model as it was");
+        assert_eq!(
+            m.version, 2,
+            "a damaged checkpoint leaves the model as it was"
+        );
     }
 
     #[test]
     fn a_reset_forgets_the_past_episode() {
         let ck = checkpoint(1);
-        let first = LiveModel::from_bytes(&ck, 1).unwrap().observe_frame(&frame(0.7), [8.0; 2]).unwrap();
+        let first = LiveModel::from_bytes(&ck, 1)
+            .unwrap()
+            .observe_frame(&frame(0.7), [8.0; 2])
+            .unwrap();
         let mut m = LiveModel::from_bytes(&ck, 1).unwrap();
         for i in 0..5 {
             m.observe_frame(&frame(0.1 * i as f32), [8.0; 2]).unwrap();
         }
         let kept = m.observe_frame(&frame(0.7), [8.0; 2]).unwrap();
-        assert_ne!(kept, first, "the past shapes the prediction without a reset");
+        assert_ne!(
+            kept, first,
+            "the past shapes the prediction without a reset"
+        );
         m.reset_state();
-        assert_eq!(m.observe_frame(&frame(0.7), [8.0; 2]).unwrap(), first, "as if it never ran");
+        assert_eq!(
+            m.observe_frame(&frame(0.7), [8.0; 2]).unwrap(),
+            first,
+            "as if it never ran"
+        );
     }
 
     #[test]
@@ -323,7 +363,8 @@ mod tests {
         let ck = checkpoint(4);
         let mut live = LiveModel::from_bytes(&ck, 1).unwrap();
         for i in 0..4 {
-            live.observe_frame(&frame(0.3 + 0.05 * i as f32), [7.0, 9.0]).unwrap();
+            live.observe_frame(&frame(0.3 + 0.05 * i as f32), [7.0, 9.0])
+                .unwrap();
         }
         let plans = vec![
             vec![Drive::new(8.0, 0.0), Drive::new(8.0, 2.0)],
@@ -333,7 +374,10 @@ mod tests {
         im.start(live.state().deep_copy(), [8.0, 8.0]).unwrap();
         let batched = im.imagine(&plans).unwrap();
         assert_eq!((batched.len(), batched[0].len()), (2, 2 * 96));
-        assert_ne!(batched[0], batched[1], "different commands, different futures");
+        assert_ne!(
+            batched[0], batched[1],
+            "different commands, different futures"
+        );
         // The second plan alone, step by step, gives the same frames.
         let _g = tch::no_grad_guard();
         let net = im.model();

@@ -91,7 +91,11 @@ impl MtaPredNet {
     /// as if it had been observed (so E_0(t) = 0). Returns the new state and the prediction
     /// `[B, 1, H, W]`; one pass, where predicting and then stepping would run the top-down pass
     /// twice.
-    pub fn f_imagine_step(&self, state: &State, action: &Tensor) -> Result<(State, Tensor), ModelError> {
+    pub fn f_imagine_step(
+        &self,
+        state: &State,
+        action: &Tensor,
+    ) -> Result<(State, Tensor), ModelError> {
         let b = self.check_state(state)?;
         self.check_action(action, b)?;
         let (tops, rs) = self.top_down(state, action);
@@ -101,7 +105,12 @@ impl MtaPredNet {
 
     /// Bottom-up half of a step from the top-down results: errors against `frame`, or against
     /// the prediction itself when `None` (imagination).
-    fn bottom_up(&self, tops: Vec<UnitStates>, rs: Vec<Tensor>, frame: Option<Tensor>) -> (State, StepOutput) {
+    fn bottom_up(
+        &self,
+        tops: Vec<UnitStates>,
+        rs: Vec<Tensor>,
+        frame: Option<Tensor>,
+    ) -> (State, StepOutput) {
         let mut layers = Vec::with_capacity(self.layers.len());
         let mut errors: Vec<Tensor> = Vec::with_capacity(self.layers.len());
         let mut x = frame;
@@ -249,7 +258,12 @@ impl MtaPredNet {
 
     /// The errors an imagined step would have had against the real frame: layer 0 only (upper
     /// layers' targets come from errors the imagination never saw); the other layers score 0.
-    fn score(&self, prediction: &Tensor, frame: &Tensor, next: &State) -> Result<StepOutput, ModelError> {
+    fn score(
+        &self,
+        prediction: &Tensor,
+        frame: &Tensor,
+        next: &State,
+    ) -> Result<StepOutput, ModelError> {
         let b = prediction.size()[0];
         let frame = self.check_frame(frame, b)?;
         let mut errors = vec![PredLayer::error(&frame, prediction)];

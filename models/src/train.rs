@@ -229,7 +229,11 @@ impl Trainer {
 
     /// The checkpoint of the current weights, as bytes (what the trainer ships to the predictor).
     pub fn checkpoint_bytes(&self, loss: Option<f64>) -> Result<Vec<u8>, CheckpointError> {
-        checkpoint::to_bytes(&self.vs, &self.cfg, &Meta::new(self.step, loss).with_probe(self.probe))
+        checkpoint::to_bytes(
+            &self.vs,
+            &self.cfg,
+            &Meta::new(self.step, loss).with_probe(self.probe),
+        )
     }
 
     /// Saves the checkpoint atomically to `path`, then Adam's moments next to it

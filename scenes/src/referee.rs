@@ -41,7 +41,11 @@ impl Referee {
         if self.window == 0 {
             return Verdict::Fine;
         }
-        self.off_steps = if truth.lateral_m.abs() > self.lost_lateral_m { self.off_steps + 1 } else { 0 };
+        self.off_steps = if truth.lateral_m.abs() > self.lost_lateral_m {
+            self.off_steps + 1
+        } else {
+            0
+        };
         self.progress.push_back(progress_m);
         if self.progress.len() > self.window + 1 {
             self.progress.pop_front();
@@ -50,7 +54,10 @@ impl Referee {
             return Verdict::Lost;
         }
         let back = self.progress.len() > self.window
-            && self.progress.front().is_some_and(|p0| progress_m < p0 - self.reverse_m);
+            && self
+                .progress
+                .front()
+                .is_some_and(|p0| progress_m < p0 - self.reverse_m);
         if self.reverse_m > 0.0 && back {
             return Verdict::WrongWay;
         }
@@ -69,7 +76,10 @@ mod tests {
     use super::*;
 
     fn at(lateral_m: f64) -> GroundTruth {
-        GroundTruth { lateral_m, ..Default::default() }
+        GroundTruth {
+            lateral_m,
+            ..Default::default()
+        }
     }
 
     #[test]

@@ -19,7 +19,15 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
     let ns = unique_namespace("ai");
     let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
     let status = Command::new(bin("mta"))
-        .args(["up", "--lockstep", "--sim-seconds", "60", "--no-learning", "--namespace", &ns])
+        .args([
+            "up",
+            "--lockstep",
+            "--sim-seconds",
+            "60",
+            "--no-learning",
+            "--namespace",
+            &ns,
+        ])
         .arg("--config")
         .arg(&config)
         .arg("--checkpoint")
@@ -39,15 +47,27 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
         get("/laps/completed_under_active_inference").as_u64() >= Some(1),
         "no lap under active inference:\n{report:#}"
     );
-    assert!(get("/control/active_inference_steps").as_u64() > Some(1500), "{report:#}");
+    assert!(
+        get("/control/active_inference_steps").as_u64() > Some(1500),
+        "{report:#}"
+    );
     assert_eq!(get("/control/fallbacks"), 0, "{report:#}");
     assert_eq!(get("/laps/lost_line_events"), 0, "{report:#}");
     // Planning kept up: every plan was taken up at its segment.
     assert_eq!(get("/control/late_plans"), 0, "{report:#}");
-    for f in ["lap_trace.png", "latency.png", "figure.png", "model.safetensors", "trace.csv"] {
+    for f in [
+        "lap_trace.png",
+        "latency.png",
+        "figure.png",
+        "model.safetensors",
+        "trace.csv",
+    ] {
         assert!(out.join(f).exists(), "{f} missing from the run folder");
     }
     let c = nodes(&ns);
-    assert!(c.alive.is_empty() && c.dead.is_empty(), "nodes left behind: {c:?}");
+    assert!(
+        c.alive.is_empty() && c.dead.is_empty(),
+        "nodes left behind: {c:?}"
+    );
     remove_namespace_files(&ns);
 }

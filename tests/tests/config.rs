@@ -23,7 +23,11 @@ fn shipped_config_matches_every_section() {
     let _: mtanet_predictor::config::PredictorConfig = f.section("predictor").unwrap();
     let _: mtanet_trainer::config::TrainerConfig = f.section("trainer").unwrap();
     let stack: mtanet_ipc::stack::StackConfig = f.section("stack").unwrap();
-    assert_eq!(stack, mtanet_ipc::stack::StackConfig::default(), "the file shows the defaults");
+    assert_eq!(
+        stack,
+        mtanet_ipc::stack::StackConfig::default(),
+        "the file shows the defaults"
+    );
 }
 
 #[test]
@@ -41,9 +45,19 @@ fn a_typo_in_a_section_is_an_error_naming_it() {
 
 #[test]
 fn a_wrong_type_and_a_bad_stack_entry_are_errors_naming_the_key() {
-    let f = ConfigFile::parse("[trainer]\npublish_every_updates = \"ten\"\n", Path::new("y.toml")).unwrap();
-    let e = f.section::<mtanet_trainer::config::TrainerConfig>("trainer").unwrap_err().to_string();
-    assert!(e.contains("publish_every_updates") && e.contains("[trainer]") && e.contains("y.toml"), "{e}");
+    let f = ConfigFile::parse(
+        "[trainer]\npublish_every_updates = \"ten\"\n",
+        Path::new("y.toml"),
+    )
+    .unwrap();
+    let e = f
+        .section::<mtanet_trainer::config::TrainerConfig>("trainer")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("publish_every_updates") && e.contains("[trainer]") && e.contains("y.toml"),
+        "{e}"
+    );
     let f = ConfigFile::parse(
         "[[stack.process]]\nname = \"simulator\"\nbinary = \"mta-simulator\"\nrealtime_priority = 120\n",
         Path::new("z.toml"),
@@ -51,5 +65,8 @@ fn a_wrong_type_and_a_bad_stack_entry_are_errors_naming_the_key() {
     .unwrap();
     let stack: mtanet_ipc::stack::StackConfig = f.section("stack").unwrap();
     let e = stack.validate().unwrap_err();
-    assert!(e.contains("realtime_priority") && e.contains("simulator"), "{e}");
+    assert!(
+        e.contains("realtime_priority") && e.contains("simulator"),
+        "{e}"
+    );
 }

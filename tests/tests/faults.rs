@@ -58,17 +58,41 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     let stack = StackConfig::default();
     let mut sup = Supervisor::new(dir.path()).unwrap();
     for spec in &stack.process {
-        let mut a = vec!["--config".into(), arg(&config), "--namespace".into(), ns.clone()];
-        a.extend(["--summary".into(), arg(&dir.path().join(format!("{}.json", spec.binary)))]);
+        let mut a = vec![
+            "--config".into(),
+            arg(&config),
+            "--namespace".into(),
+            ns.clone(),
+        ];
+        a.extend([
+            "--summary".into(),
+            arg(&dir.path().join(format!("{}.json", spec.binary))),
+        ]);
         sup.add(spec, a).unwrap();
     }
     for (k, p) in stack.process.iter().enumerate() {
         sup.start(&p.name).unwrap();
-        assert!(wait_for_alive(&ns, k + 1, Duration::from_secs(60)).alive.len() > k, "{} did not come up", p.name);
+        assert!(
+            wait_for_alive(&ns, k + 1, Duration::from_secs(60))
+                .alive
+                .len()
+                > k,
+            "{} did not come up",
+            p.name
+        );
     }
-    let node = create_node(&IpcConfig { namespace: ns.clone() }, "fault-watch").unwrap();
+    let node = create_node(
+        &IpcConfig {
+            namespace: ns.clone(),
+        },
+        "fault-watch",
+    )
+    .unwrap();
     let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP).unwrap();
-    assert!(stepping(&cmds, &mut sup, Duration::from_secs(30)).is_some(), "the stack never stepped");
+    assert!(
+        stepping(&cmds, &mut sup, Duration::from_secs(30)).is_some(),
+        "the stack never stepped"
+    );
 
     let mut times = Vec::new();
     for victim in ["predictor", "trainer", "simulator"] {
@@ -76,8 +100,14 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
             // Kill it once it has learnt and saved something of its own (publish = save).
             let log = sup.log_path("mta-trainer");
             let t0 = Instant::now();
-            while !std::fs::read_to_string(&log).unwrap_or_default().contains("weights published version=2") {
-                assert!(t0.elapsed() < Duration::from_secs(90), "the trainer never published");
+            while !std::fs::read_to_string(&log)
+                .unwrap_or_default()
+                .contains("weights published version=2")
+            {
+                assert!(
+                    t0.elapsed() < Duration::from_secs(90),
+                    "the trainer never published"
+                );
                 sup.poll().unwrap();
                 std::thread::sleep(Duration::from_millis(50));
             }
@@ -88,18 +118,31 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         unsafe { libc::kill(pid as i32, libc::SIGKILL) };
         let mut restarted = false;
         while t0.elapsed() < Duration::from_secs(10) && !restarted {
-            restarted = sup.poll().unwrap().iter().any(|e| matches!(e, Event::Restarted { name, .. } if name == victim));
+            restarted = sup
+                .poll()
+                .unwrap()
+                .iter()
+                .any(|e| matches!(e, Event::Restarted { name, .. } if name == victim));
             std::thread::sleep(Duration::from_millis(10));
         }
         assert!(restarted, "{victim} was not restarted");
         let back = stepping(&cmds, &mut sup, Duration::from_secs(10));
         let since_kill = t0.elapsed();
-        assert!(back.is_some(), "the stack did not step again after {victim} was killed");
+        assert!(
+            back.is_some(),
+            "the stack did not step again after {victim} was killed"
+        );
         // Stepping again = half a second of steps answered (~0.5 s of the 2 s allowed).
-        assert!(since_kill < Duration::from_secs(3), "{victim}: {since_kill:?} from kill to 25 steps answered");
+        assert!(
+            since_kill < Duration::from_secs(3),
+            "{victim}: {since_kill:?} from kill to 25 steps answered"
+        );
         times.push((victim, since_kill));
         let c = nodes(&ns);
-        assert!(c.dead.is_empty(), "stale nodes after {victim} was restarted: {c:?}");
+        assert!(
+            c.dead.is_empty(),
+            "stale nodes after {victim} was restarted: {c:?}"
+        );
     }
     println!("kill -9 -> restarted and 25 steps answered again: {times:?}");
     assert_eq!(sup.restarts().values().sum::<u32>(), 3);
@@ -107,11 +150,18 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     // The restarted trainer resumes at the step of its last publish (it saves then): it loses
     // less than one checkpoint interval.
     let step_of = |line: &str| -> Option<u64> {
-        line.split_whitespace().find_map(|w| w.strip_prefix("step=")).and_then(|v| v.parse().ok())
+        line.split_whitespace()
+            .find_map(|w| w.strip_prefix("step="))
+            .and_then(|v| v.parse().ok())
     };
     let lines: Vec<&str> = trainer_log.lines().collect();
-    let resumed: Vec<usize> = (0..lines.len()).filter(|&i| lines[i].contains("resumed training")).collect();
-    assert!(resumed.len() >= 2, "the restarted trainer resumes from its checkpoint:\n{trainer_log}");
+    let resumed: Vec<usize> = (0..lines.len())
+        .filter(|&i| lines[i].contains("resumed training"))
+        .collect();
+    assert!(
+        resumed.len() >= 2,
+        "the restarted trainer resumes from its checkpoint:\n{trainer_log}"
+    );
     let at = step_of(lines[resumed[1]]).unwrap();
     let last_published = lines[..resumed[1]]
         .iter()
@@ -119,7 +169,10 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         .filter_map(|l| step_of(l))
         .last()
         .unwrap_or(0);
-    assert!(at >= last_published && at > 2351, "resumed at {at}, last published {last_published}");
+    assert!(
+        at >= last_published && at > 2351,
+        "resumed at {at}, last published {last_published}"
+    );
     let predictor_log = std::fs::read_to_string(sup.log_path("mta-predictor")).unwrap();
     assert!(
         predictor_log.matches("weights loaded").count() >= 2,
@@ -134,21 +187,51 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
             .args(["status", "--json", "--listen-s", "3", "--namespace", &ns])
             .output()
             .unwrap();
-        assert!(out.status.success(), "mta status: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "mta status: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         status = serde_json::from_slice(&out.stdout).unwrap();
         sup.poll().unwrap();
-        if status.pointer("/processes/simulator/rate_hz").is_some_and(|r| r.is_number()) {
+        if status
+            .pointer("/processes/simulator/rate_hz")
+            .is_some_and(|r| r.is_number())
+        {
             break;
         }
     }
     for p in ["simulator", "predictor", "trainer"] {
-        assert_eq!(status.pointer(&format!("/processes/{p}/restarts")), Some(&1.into()), "{status:#}");
-        assert_eq!(status.pointer(&format!("/processes/{p}/pid")), Some(&sup.pid(p).unwrap().into()), "{status:#}");
+        assert_eq!(
+            status.pointer(&format!("/processes/{p}/restarts")),
+            Some(&1.into()),
+            "{status:#}"
+        );
+        assert_eq!(
+            status.pointer(&format!("/processes/{p}/pid")),
+            Some(&sup.pid(p).unwrap().into()),
+            "{status:#}"
+        );
     }
-    let rate = status.pointer("/processes/simulator/rate_hz").and_then(|r| r.as_f64()).unwrap_or(0.0);
-    assert!((40.0..60.0).contains(&rate), "the simulator steps at 50 Hz: {status:#}");
-    assert!(status.pointer("/processes/predictor/detail/driver").is_some_and(|d| d.is_string()), "{status:#}");
-    assert_eq!(status.pointer("/nodes/dead"), Some(&serde_json::json!([])), "{status:#}");
+    let rate = status
+        .pointer("/processes/simulator/rate_hz")
+        .and_then(|r| r.as_f64())
+        .unwrap_or(0.0);
+    assert!(
+        (40.0..60.0).contains(&rate),
+        "the simulator steps at 50 Hz: {status:#}"
+    );
+    assert!(
+        status
+            .pointer("/processes/predictor/detail/driver")
+            .is_some_and(|d| d.is_string()),
+        "{status:#}"
+    );
+    assert_eq!(
+        status.pointer("/nodes/dead"),
+        Some(&serde_json::json!([])),
+        "{status:#}"
+    );
 
     // Frozen for 1 s: the simulator misses the deadlines, its fallback drives, the loop recovers.
     let pid = sup.pid("predictor").unwrap() as i32;
@@ -156,16 +239,29 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     unsafe { libc::kill(pid, libc::SIGSTOP) };
     std::thread::sleep(Duration::from_secs(1)); // the fault itself: a stopped process
     unsafe { libc::kill(pid, libc::SIGCONT) };
-    assert!(stepping(&cmds, &mut sup, Duration::from_secs(5)).is_some(), "no recovery after SIGCONT");
+    assert!(
+        stepping(&cmds, &mut sup, Duration::from_secs(5)).is_some(),
+        "no recovery after SIGCONT"
+    );
     drop((cmds, node));
     let ends = sup.stop_all(Duration::from_secs(30));
     for (name, how) in &ends {
-        assert_eq!(how.as_deref(), Some("exit code 0"), "{name} did not stop cleanly: {ends:?}");
+        assert_eq!(
+            how.as_deref(),
+            Some("exit code 0"),
+            "{name} did not stop cleanly: {ends:?}"
+        );
     }
     let sim = read_json(&dir.path().join("mta-simulator.json"));
     let missed = sim["missed_commands"].as_u64().unwrap();
-    assert!((30..=80).contains(&missed), "1 s frozen at 50 Hz: about 50 steps missed, got {missed}");
-    assert_eq!(sim["resets"], 0, "the fallback kept the car on the line: {sim}");
+    assert!(
+        (30..=80).contains(&missed),
+        "1 s frozen at 50 Hz: about 50 steps missed, got {missed}"
+    );
+    assert_eq!(
+        sim["resets"], 0,
+        "the fallback kept the car on the line: {sim}"
+    );
     let tr = read_json(&dir.path().join("mta-trainer.json"));
     assert_eq!(
         tr["steps_received"].as_u64().unwrap(),
@@ -173,6 +269,9 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         "only whole chunks reach the trainer: {tr}"
     );
     let c = nodes(&ns);
-    assert!(c.alive.is_empty() && c.dead.is_empty(), "nodes left behind: {c:?}");
+    assert!(
+        c.alive.is_empty() && c.dead.is_empty(),
+        "nodes left behind: {c:?}"
+    );
     remove_namespace_files(&ns);
 }

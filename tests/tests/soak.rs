@@ -16,7 +16,14 @@ fn a_one_minute_realtime_soak_misses_no_deadline_and_leaks_no_files() {
     let out = dir.path().join("soak");
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let status = Command::new(bin("mta"))
-        .args(["soak", "--realtime", "--minutes", "1", "--pingpong-seconds", "5"])
+        .args([
+            "soak",
+            "--realtime",
+            "--minutes",
+            "1",
+            "--pingpong-seconds",
+            "5",
+        ])
         .arg("--config")
         .arg(data.join("../ops/mtanet.toml"))
         .arg("--checkpoint")
@@ -28,18 +35,33 @@ fn a_one_minute_realtime_soak_misses_no_deadline_and_leaks_no_files() {
         .unwrap();
     let log = std::fs::read_to_string(dir.path().join("soak.log")).unwrap_or_default();
     assert!(status.success(), "mta soak failed: {status}\n{log}");
-    let soak: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("soak.json")).unwrap()).unwrap();
+    let soak: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("soak.json")).unwrap()).unwrap();
     let get = |p: &str| soak.pointer(p).cloned().unwrap_or_default();
     assert_eq!(get("/steps"), 3000, "{soak:#}");
     assert_eq!(get("/clean_exit"), true, "{soak:#}");
     assert_eq!(get("/deadline_misses"), 0, "{soak:#}");
     assert_eq!(get("/dropped_commands"), 0, "{soak:#}");
     assert_eq!(get("/replay/dropped_chunks"), 0, "{soak:#}");
-    assert_eq!(get("/restarts"), serde_json::json!({"predictor": 0, "simulator": 0, "trainer": 0}), "{soak:#}");
-    assert!(get("/control/active_inference_steps").as_u64() > Some(1500), "the predictor must plan: {soak:#}");
+    assert_eq!(
+        get("/restarts"),
+        serde_json::json!({"predictor": 0, "simulator": 0, "trainer": 0}),
+        "{soak:#}"
+    );
+    assert!(
+        get("/control/active_inference_steps").as_u64() > Some(1500),
+        "the predictor must plan: {soak:#}"
+    );
     for name in ["simulator", "predictor", "trainer"] {
-        let fds = |at: &str| get(&format!("/processes/{name}/fds/{at}")).as_u64().unwrap_or(u64::MAX);
-        assert!(fds("start") > 0 && fds("end") <= fds("start"), "{name}'s open files grew: {soak:#}");
+        let fds = |at: &str| {
+            get(&format!("/processes/{name}/fds/{at}"))
+                .as_u64()
+                .unwrap_or(u64::MAX)
+        };
+        assert!(
+            fds("start") > 0 && fds("end") <= fds("start"),
+            "{name}'s open files grew: {soak:#}"
+        );
     }
     assert!(out.join("soak.png").exists());
 }

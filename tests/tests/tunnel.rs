@@ -46,16 +46,34 @@ impl Drop for Tunnel {
 /// working directory, where the prefix puts it in the namespace's domain.
 fn tunnel(dir: &Path, ns: &str, zenoh: &str, wake_on: &str) -> Tunnel {
     std::fs::create_dir_all(dir.join("config")).unwrap();
-    std::fs::write(dir.join("config/iceoryx2.toml"), format!("[global]\nprefix = \"iox2_{ns}_\"\n")).unwrap();
+    std::fs::write(
+        dir.join("config/iceoryx2.toml"),
+        format!("[global]\nprefix = \"iox2_{ns}_\"\n"),
+    )
+    .unwrap();
     std::fs::write(dir.join("zenoh.json5"), zenoh).unwrap();
     let bin = tunnel_bin();
-    assert!(bin.exists(), "{} is missing: run ./ops/setup.sh", bin.display());
+    assert!(
+        bin.exists(),
+        "{} is missing: run ./ops/setup.sh",
+        bin.display()
+    );
     let log = dir.join("tunnel.log");
     let mut cmd = Command::new(&bin);
     cmd.current_dir(dir)
-        .args(["--zenoh-config", "zenoh.json5", "--reactive", "--poll", "50", "--listener", wake_on])
+        .args([
+            "--zenoh-config",
+            "zenoh.json5",
+            "--reactive",
+            "--poll",
+            "50",
+            "--listener",
+            wake_on,
+        ])
         .stdout(std::fs::File::create(&log).unwrap())
-        .stderr(Stdio::from(std::fs::File::options().append(true).open(&log).unwrap()));
+        .stderr(Stdio::from(
+            std::fs::File::options().append(true).open(&log).unwrap(),
+        ));
     for s in CROSSING {
         cmd.args(["--allow", s]);
     }
@@ -73,13 +91,22 @@ fn zenoh_config(listen: Option<u16>, connect: Option<u16>) -> String {
 }
 
 fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
 }
 
 fn pct(mut v: Vec<f64>) -> String {
     v.sort_by(f64::total_cmp);
     let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-    format!("p50 {:.1} ms, max {:.1} ms (n = {})", at(0.5), at(1.0), v.len())
+    format!(
+        "p50 {:.1} ms, max {:.1} ms (n = {})",
+        at(0.5),
+        at(1.0),
+        v.len()
+    )
 }
 
 #[test]
@@ -89,8 +116,18 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     let port = free_port();
     // The robot's tunnel listens, the trainer host's connects; each wakes on its own outgoing
     // topic's events and on data from the peer (--reactive), and polls for discovery.
-    let a = tunnel(&dir.path().join("robot"), &robot, &zenoh_config(Some(port), None), names::REPLAY);
-    let b = tunnel(&dir.path().join("trainer"), &trainer, &zenoh_config(None, Some(port)), names::WEIGHTS);
+    let a = tunnel(
+        &dir.path().join("robot"),
+        &robot,
+        &zenoh_config(Some(port), None),
+        names::REPLAY,
+    );
+    let b = tunnel(
+        &dir.path().join("trainer"),
+        &trainer,
+        &zenoh_config(None, Some(port)),
+        names::WEIGHTS,
+    );
     let logs = || {
         [&a.1, &b.1]
             .iter()
@@ -99,11 +136,25 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
             .join("\n---\n")
     };
 
-    let robot_node = create_node(&IpcConfig { namespace: robot.clone() }, "robot").unwrap();
-    let trainer_node = create_node(&IpcConfig { namespace: trainer.clone() }, "trainer-host").unwrap();
-    let replay_out = Sender::<ReplayChunk>::open(&robot_node, names::REPLAY, TopicShape::REPLAY).unwrap();
+    let robot_node = create_node(
+        &IpcConfig {
+            namespace: robot.clone(),
+        },
+        "robot",
+    )
+    .unwrap();
+    let trainer_node = create_node(
+        &IpcConfig {
+            namespace: trainer.clone(),
+        },
+        "trainer-host",
+    )
+    .unwrap();
+    let replay_out =
+        Sender::<ReplayChunk>::open(&robot_node, names::REPLAY, TopicShape::REPLAY).unwrap();
     let weights_in = WeightsReceiver::open(&robot_node).unwrap();
-    let replay_in = Receiver::<ReplayChunk>::open(&trainer_node, names::REPLAY, TopicShape::REPLAY).unwrap();
+    let replay_in =
+        Receiver::<ReplayChunk>::open(&trainer_node, names::REPLAY, TopicShape::REPLAY).unwrap();
     let weights_out = WeightsSender::open(&trainer_node).unwrap();
 
     // Replay, robot -> trainer: send until the tunnels have found each other and a chunk arrives.
@@ -120,13 +171,20 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     let mut seq = 0;
     let mut first = None;
     while first.is_none() {
-        assert!(t0.elapsed() < Duration::from_secs(60), "no replay chunk crossed in 60 s:\n{}", logs());
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no replay chunk crossed in 60 s:\n{}",
+            logs()
+        );
         seq += 1;
         send_chunk(seq);
         replay_in.wait(Duration::from_millis(200)).unwrap();
         replay_in.for_each(|c| first = Some(c.seq)).unwrap();
     }
-    println!("first replay chunk crossed {:.1} s after the tunnels started", t0.elapsed().as_secs_f64());
+    println!(
+        "first replay chunk crossed {:.1} s after the tunnels started",
+        t0.elapsed().as_secs_f64()
+    );
     let mut replay_ms = Vec::new();
     for _ in 0..20 {
         seq += 1;
@@ -149,22 +207,40 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     }
 
     // Weights, trainer -> robot: the committed checkpoint (~1 MB) as the trainer sends it.
-    let blob = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors")).unwrap();
+    let blob =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors"))
+            .unwrap();
     let mut weights_ms = Vec::new();
     for version in 1..=5u64 {
-        let header = WeightsHeader { version, train_step: version, ..Default::default() };
+        let header = WeightsHeader {
+            version,
+            train_step: version,
+            ..Default::default()
+        };
         let t = Instant::now();
         let mut sent: Option<Instant> = None;
         let got = loop {
-            assert!(t.elapsed() < Duration::from_secs(30), "weights version {version} did not cross:\n{}", logs());
+            assert!(
+                t.elapsed() < Duration::from_secs(30),
+                "weights version {version} did not cross:\n{}",
+                logs()
+            );
             // The first one again each second until the weights bridge is up; later ones once.
             if sent.is_none_or(|s| version == 1 && s.elapsed() > Duration::from_secs(1)) {
                 weights_out.send(header, &blob).unwrap();
                 sent = Some(Instant::now());
             }
-            let _ = weights_in.listener().timed_wait(|_| {}, Duration::from_millis(50));
+            let _ = weights_in
+                .listener()
+                .timed_wait(|_| {}, Duration::from_millis(50));
             let g = weights_in
-                .latest(|h, bytes| (h.version, stamp::elapsed_ns(h.stamp_ns), bytes == blob.as_slice()))
+                .latest(|h, bytes| {
+                    (
+                        h.version,
+                        stamp::elapsed_ns(h.stamp_ns),
+                        bytes == blob.as_slice(),
+                    )
+                })
                 .unwrap();
             if let Some(g) = g.filter(|g| g.0 == version) {
                 break g;
@@ -182,13 +258,24 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     );
     print!("{line}");
     let _ = std::io::stdout().flush();
-    drop((replay_out, weights_in, replay_in, weights_out, robot_node, trainer_node));
+    drop((
+        replay_out,
+        weights_in,
+        replay_in,
+        weights_out,
+        robot_node,
+        trainer_node,
+    ));
     // The stack across the tunnels: simulator and predictor in the robot's domain, the trainer
     // (resuming the committed checkpoint, publishing every 10 updates) in its own.
     let run = dir.path().join("stack");
     let ck = run.join("ck");
     std::fs::create_dir_all(&ck).unwrap();
-    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors"), ck.join("latest.safetensors")).unwrap();
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors"),
+        ck.join("latest.safetensors"),
+    )
+    .unwrap();
     let config = run.join("stack.toml");
     std::fs::write(
         &config,
@@ -200,7 +287,14 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     .unwrap();
     let args = |ns: &str, name: &str| {
         let summary = run.join(format!("{name}.json"));
-        vec!["--config".to_string(), config.to_string_lossy().into(), "--namespace".into(), ns.into(), "--summary".into(), summary.to_string_lossy().into()]
+        vec![
+            "--config".to_string(),
+            config.to_string_lossy().into(),
+            "--namespace".into(),
+            ns.into(),
+            "--summary".into(),
+            summary.to_string_lossy().into(),
+        ]
     };
     let mut tr = Proc::spawn("mta-trainer", &args(&trainer, "trainer"), &run);
     let mut pr = Proc::spawn("mta-predictor", &args(&robot, "predictor"), &run);
@@ -209,7 +303,11 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     let mut sim = Proc::spawn("mta-simulator", &args(&robot, "simulator"), &run);
     let full = |p: &Proc| std::fs::read_to_string(&p.log).unwrap_or_default();
     let reshaped = |p: &Proc| full(p).contains("other queue sizes");
-    assert!(sim.wait(Duration::from_secs(120)).success(), "{}", full(&sim));
+    assert!(
+        sim.wait(Duration::from_secs(120)).success(),
+        "{}",
+        full(&sim)
+    );
     for p in [&pr, &tr] {
         p.signal(libc::SIGTERM);
     }
@@ -217,19 +315,36 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
     assert!(tr.wait(Duration::from_secs(30)).success(), "{}", full(&tr));
     for p in [&sim, &pr, &tr] {
         if reshaped(p) {
-            println!("{} opened a service the tunnel had created with other queue sizes", p.name);
+            println!(
+                "{} opened a service the tunnel had created with other queue sizes",
+                p.name
+            );
         }
     }
-    let (sim, pr, tr) = (read_json(&run.join("simulator.json")), read_json(&run.join("predictor.json")), read_json(&run.join("trainer.json")));
+    let (sim, pr, tr) = (
+        read_json(&run.join("simulator.json")),
+        read_json(&run.join("predictor.json")),
+        read_json(&run.join("trainer.json")),
+    );
     let sent = sim["replay_chunks_sent"].as_u64().unwrap();
     let received = tr["chunks_received"].as_u64().unwrap();
     println!(
         "stack across the tunnels: {sent} replay chunks sent, {received} received, {} trainer updates, {} weights published, {} received by the predictor",
         tr["session_updates"], tr["weights_published"], pr["weights_received"]
     );
-    assert!(sent >= 45 && received * 10 >= sent * 9, "replay chunks crossed: {received} of {sent}\n{tr}");
-    assert!(tr["session_updates"].as_u64() >= Some(10), "the trainer learnt from them: {tr}");
-    assert!(pr["weights_received"].as_u64() >= Some(1), "weights it learnt came back: {pr}\n{}", logs());
+    assert!(
+        sent >= 45 && received * 10 >= sent * 9,
+        "replay chunks crossed: {received} of {sent}\n{tr}"
+    );
+    assert!(
+        tr["session_updates"].as_u64() >= Some(10),
+        "the trainer learnt from them: {tr}"
+    );
+    assert!(
+        pr["weights_received"].as_u64() >= Some(1),
+        "weights it learnt came back: {pr}\n{}",
+        logs()
+    );
     drop((a, b));
     remove_namespace_files(&robot);
     remove_namespace_files(&trainer);

@@ -47,7 +47,11 @@ impl ProcessStats {
     }
 
     pub fn role(&self) -> &str {
-        let n = self.role.iter().position(|&c| c == 0).unwrap_or(self.role.len());
+        let n = self
+            .role
+            .iter()
+            .position(|&c| c == 0)
+            .unwrap_or(self.role.len());
         core::str::from_utf8(&self.role[..n]).unwrap_or("?")
     }
 }

@@ -9,7 +9,9 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use mtanet_control::{AgentConfig, AgentModel, ExplorationConfig, FrameShape, Health, Inline, Planner, Wheels};
+use mtanet_control::{
+    AgentConfig, AgentModel, ExplorationConfig, FrameShape, Health, Inline, Planner, Wheels,
+};
 use mtanet_eval::{DriveConfig, OracleImagination, OracleModel, ProbeConfig, SeesWorld, drive};
 use mtanet_ipc::config::ConfigFile;
 use mtanet_models::live::{Imagined, LiveModel};
@@ -51,7 +53,10 @@ pub struct DriveArgs {
     frame_skip: usize,
 }
 
-fn scene_and_agent(config: Option<&PathBuf>, track: Option<&PathBuf>) -> anyhow::Result<(ConfigFile, SceneConfig, AgentConfig)> {
+fn scene_and_agent(
+    config: Option<&PathBuf>,
+    track: Option<&PathBuf>,
+) -> anyhow::Result<(ConfigFile, SceneConfig, AgentConfig)> {
     let file = ConfigFile::load(config.map(PathBuf::as_path))?;
     let mut scene: SceneConfig = file.section("simulator.scene")?;
     if let Some(t) = track {
@@ -65,7 +70,8 @@ pub fn probe(args: ProbeArgs) -> anyhow::Result<()> {
     tch::set_num_threads(1);
     let (file, scene, agent) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
     let cfg: ProbeConfig = file.section("trainer.probe")?;
-    let bytes = std::fs::read(&args.checkpoint).with_context(|| format!("reading {}", args.checkpoint.display()))?;
+    let bytes = std::fs::read(&args.checkpoint)
+        .with_context(|| format!("reading {}", args.checkpoint.display()))?;
     let r = mtanet_eval::probe(&scene, &bytes, &agent, &cfg)?;
     println!("{}", serde_json::to_string_pretty(&r)?);
     Ok(())
@@ -100,25 +106,46 @@ pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
     let (file, scene, agent_cfg) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
     let reactive: mtanet_control::ReactiveConfig = file.section("predictor.reactive")?;
     // Exploration is for learning: an evaluation drives without it.
-    let off = ExplorationConfig { enabled: false, ..Default::default() };
+    let off = ExplorationConfig {
+        enabled: false,
+        ..Default::default()
+    };
     let mut world = World::new(&scene)?;
-    let mut agent = mtanet_control::Agent::new(&agent_cfg, &reactive, &off, FrameShape::CAR, scene.control_period_s as f32);
+    let mut agent = mtanet_control::Agent::new(
+        &agent_cfg,
+        &reactive,
+        &off,
+        FrameShape::CAR,
+        scene.control_period_s as f32,
+    );
     let planner = Planner::new(&agent_cfg.planner)?;
-    let run = DriveConfig { max_steps: args.steps, stop_after_ai_laps: args.laps, trace_every: 0, ..Default::default() };
+    let run = DriveConfig {
+        max_steps: args.steps,
+        stop_after_ai_laps: args.laps,
+        trace_every: 0,
+        ..Default::default()
+    };
     let report = match &args.checkpoint {
         Some(ck) => {
             let bytes = std::fs::read(ck).with_context(|| format!("reading {}", ck.display()))?;
             let mut live = LiveModel::from_bytes(&bytes, 1)?;
             // Trusted for control only with a passing probe, measured here on this track.
             let probe_cfg: ProbeConfig = file.section("trainer.probe")?;
-            live.probe = Some(mtanet_eval::probe(&scene, &bytes, &agent_cfg, &probe_cfg)?.rank_correlation);
+            live.probe =
+                Some(mtanet_eval::probe(&scene, &bytes, &agent_cfg, &probe_cfg)?.rank_correlation);
             tracing::info!(probe = ?live.probe, "probed the checkpoint on this track");
             let mut plans = Inline::new(planner, Imagined::from_bytes(&bytes)?);
             drive(&mut world, &mut agent, &mut Learned(live), &mut plans, &run)?
         }
         None => {
             let mut plans = Inline::new(planner, OracleImagination::new(&scene, args.frame_skip)?);
-            drive(&mut world, &mut agent, &mut OracleModel::new(args.frame_skip), &mut plans, &run)?
+            drive(
+                &mut world,
+                &mut agent,
+                &mut OracleModel::new(args.frame_skip),
+                &mut plans,
+                &run,
+            )?
         }
     };
     println!("{}", serde_json::to_string_pretty(&report)?);

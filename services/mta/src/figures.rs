@@ -63,7 +63,11 @@ pub fn run(args: FiguresArgs) -> anyhow::Result<()> {
 
 /// The figure strip of the checkpoint at `model` on a fresh drive of `track` (the reactive rule
 /// with exploration, at the model's frame skip), written to `out`.
-pub fn strip_on_track(model: &std::path::Path, track: &std::path::Path, out: &std::path::Path) -> anyhow::Result<()> {
+pub fn strip_on_track(
+    model: &std::path::Path,
+    track: &std::path::Path,
+    out: &std::path::Path,
+) -> anyhow::Result<()> {
     use mtanet_models::sequences::push_window;
     let ck = checkpoint::load(model).with_context(|| format!("loading {}", model.display()))?;
     let (_vs, net) = ck.build()?;

@@ -3,11 +3,11 @@
 mod canvas;
 mod evaluate;
 mod figures;
-mod soak;
-mod status;
 mod pingpong;
 mod report;
 mod runcfg;
+mod soak;
+mod status;
 mod synth;
 mod systemd;
 mod train;

@@ -31,7 +31,10 @@ pub fn realtime(priority: Option<i32>) -> bool {
     // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
     let ok = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0;
     if !ok {
-        tracing::warn!(priority = p, "SCHED_FIFO refused; the ping-pong runs with the normal scheduler");
+        tracing::warn!(
+            priority = p,
+            "SCHED_FIFO refused; the ping-pong runs with the normal scheduler"
+        );
     }
     ok
 }
@@ -40,7 +43,12 @@ pub fn realtime(priority: Option<i32>) -> bool {
 pub fn peer(args: PeerArgs) -> anyhow::Result<()> {
     let shutdown = Shutdown::install()?;
     realtime(args.priority);
-    let node = create_node(&IpcConfig { namespace: args.namespace }, "pingpong-peer")?;
+    let node = create_node(
+        &IpcConfig {
+            namespace: args.namespace,
+        },
+        "pingpong-peer",
+    )?;
     let ping = Receiver::<Observation>::open(&node, PING, TopicShape::STEP)?;
     let pong = Sender::<Command>::open(&node, PONG, TopicShape::STEP)?;
     let waitset = create_waitset()?;
@@ -86,12 +94,20 @@ pub fn measure(
     priority: Option<i32>,
 ) -> anyhow::Result<(LatencyStats, u64)> {
     realtime(priority);
-    let node = create_node(&IpcConfig { namespace: ns.into() }, "pingpong")?;
+    let node = create_node(
+        &IpcConfig {
+            namespace: ns.into(),
+        },
+        "pingpong",
+    )?;
     let ping = Sender::<Observation>::open(&node, PING, TopicShape::STEP)?;
     let pong = Receiver::<Command>::open(&node, PONG, TopicShape::STEP)?;
     let t0 = Instant::now();
     while ping.subscribers() == 0 || pong.publishers() == 0 {
-        anyhow::ensure!(t0.elapsed() < Duration::from_secs(20), "the ping-pong peer did not come up");
+        anyhow::ensure!(
+            t0.elapsed() < Duration::from_secs(20),
+            "the ping-pong peer did not come up"
+        );
         std::thread::sleep(Duration::from_millis(10));
     }
     let mut stats = LatencyStats::new();

@@ -77,7 +77,9 @@ pub struct Report {
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<Option<T>> {
     match std::fs::read(path) {
-        Ok(b) => Ok(Some(serde_json::from_slice(&b).with_context(|| format!("reading {}", path.display()))?)),
+        Ok(b) => Ok(Some(
+            serde_json::from_slice(&b).with_context(|| format!("reading {}", path.display()))?,
+        )),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
     }
@@ -92,8 +94,12 @@ pub fn run(args: ReportArgs) -> anyhow::Result<()> {
 /// Builds `report.json` and the pictures in `dir`; returns the report.
 pub fn write(dir: &Path) -> anyhow::Result<Report> {
     let info: RunInfo = read_json(&dir.join("run.json"))?.unwrap_or_default();
-    let sim: SimulatorSummary = read_json(&dir.join("mta-simulator.json"))?
-        .with_context(|| format!("{} has no mta-simulator.json: the simulator did not finish", dir.display()))?;
+    let sim: SimulatorSummary = read_json(&dir.join("mta-simulator.json"))?.with_context(|| {
+        format!(
+            "{} has no mta-simulator.json: the simulator did not finish",
+            dir.display()
+        )
+    })?;
     let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
     let tr: Option<TrainerSummary> = read_json(&dir.join("mta-trainer.json"))?;
     let sup: Option<serde_json::Value> = read_json(&dir.join("supervisor.json"))?;
@@ -171,8 +177,17 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
     if let Err(e) = lap_trace(dir, &info.track) {
         tracing::warn!("no lap trace picture: {e:#}");
     }
-    let pred_hist = pred.as_ref().map(|p| p.compute_hist.clone()).unwrap_or_default();
-    latency_picture(&dir.join("latency.png"), &[("simulator step", &sim.step_time_hist), ("predictor compute", &pred_hist)])?;
+    let pred_hist = pred
+        .as_ref()
+        .map(|p| p.compute_hist.clone())
+        .unwrap_or_default();
+    latency_picture(
+        &dir.join("latency.png"),
+        &[
+            ("simulator step", &sim.step_time_hist),
+            ("predictor compute", &pred_hist),
+        ],
+    )?;
     let model = dir.join("model.safetensors");
     if model.exists()
         && let Err(e) = crate::figures::strip_on_track(&model, &info.track, &dir.join("figure.png"))
@@ -200,19 +215,32 @@ fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
         .skip(1)
         .filter_map(|l| {
             let f: Vec<&str> = l.split(',').collect();
-            Some((f.get(2)?.parse().ok()?, f.get(3)?.parse().ok()?, f.get(5)?.to_string()))
+            Some((
+                f.get(2)?.parse().ok()?,
+                f.get(3)?.parse().ok()?,
+                f.get(5)?.to_string(),
+            ))
         })
         .collect();
     let track = mtanet_scenes::Track::load(track).context("loading the run's track")?;
     let line: Vec<[f64; 2]> = track.points().to_vec();
-    let all = line.iter().map(|p| (p[0], p[1])).chain(pts.iter().map(|p| (p.0, p.1)));
+    let all = line
+        .iter()
+        .map(|p| (p[0], p[1]))
+        .chain(pts.iter().map(|p| (p.0, p.1)));
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for (x, y) in all {
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
     let (w, h, m) = (900usize, 700usize, 50.0);
-    let scale = ((w as f64 - 2.0 * m) / (x1 - x0).max(1e-3)).min((h as f64 - 2.0 * m - 40.0) / (y1 - y0).max(1e-3));
-    let to = |x: f64, y: f64| ((m + (x - x0) * scale) as i64, (h as f64 - m - (y - y0) * scale) as i64);
+    let scale = ((w as f64 - 2.0 * m) / (x1 - x0).max(1e-3))
+        .min((h as f64 - 2.0 * m - 40.0) / (y1 - y0).max(1e-3));
+    let to = |x: f64, y: f64| {
+        (
+            (m + (x - x0) * scale) as i64,
+            (h as f64 - m - (y - y0) * scale) as i64,
+        )
+    };
     let mut c = Canvas::new(w, h);
     for k in 0..line.len() {
         let (a, b) = (line[k], line[(k + 1) % line.len()]);
@@ -223,7 +251,13 @@ fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
         c.dot(px, py, 1, colour(s));
     }
     let mut x = 10;
-    for s in ["reactive", "exploration", "active_inference", "fallback", "teacher"] {
+    for s in [
+        "reactive",
+        "exploration",
+        "active_inference",
+        "fallback",
+        "teacher",
+    ] {
         c.rect((x, 12), (x + 12, 24), colour(s));
         c.text(x + 18, 12, s, 1, BLACK);
         x += 30 + 8 * s.len() as i64;
@@ -236,7 +270,8 @@ pub fn latency_picture(path: &Path, series: &[(&str, &Vec<[f64; 2]>)]) -> anyhow
     let (w, row_h, left) = (900usize, 200usize, 60i64);
     let mut c = Canvas::new(w, row_h * series.len() + 40);
     // 1 us .. 1 s over the width.
-    let xs = |us: f64| left + ((us.max(1.0).log10() / 6.0) * (w as f64 - left as f64 - 20.0)) as i64;
+    let xs =
+        |us: f64| left + ((us.max(1.0).log10() / 6.0) * (w as f64 - left as f64 - 20.0)) as i64;
     for (i, (name, hist)) in series.iter().enumerate() {
         let top = 10 + (i * row_h) as i64;
         let base = top + row_h as i64 - 40;
@@ -247,14 +282,27 @@ pub fn latency_picture(path: &Path, series: &[(&str, &Vec<[f64; 2]>)]) -> anyhow
             // Each bin is a tenth of a decade wide, ending at its upper bound.
             let lo = b[0] / 10f64.powf(0.1);
             let hgt = ((b[1] / peak).sqrt() * (row_h as f64 - 70.0)) as i64;
-            c.rect((xs(lo) + 1, base - hgt), (xs(b[0]).max(xs(lo) + 1), base), [0, 110, 220]);
+            c.rect(
+                (xs(lo) + 1, base - hgt),
+                (xs(b[0]).max(xs(lo) + 1), base),
+                [0, 110, 220],
+            );
         }
-        for (k, lbl) in ["1us", "10us", "100us", "1ms", "10ms", "100ms", "1s"].iter().enumerate() {
+        for (k, lbl) in ["1us", "10us", "100us", "1ms", "10ms", "100ms", "1s"]
+            .iter()
+            .enumerate()
+        {
             let x = xs(10f64.powi(k as i32));
             c.line((x, base), (x, base + 4), BLACK);
             c.text(x - 8, base + 8, lbl, 1, BLACK);
         }
     }
-    c.text(left, (row_h * series.len()) as i64 + 10, "count (sqrt scale) per 1/10 decade", 1, BLACK);
+    c.text(
+        left,
+        (row_h * series.len()) as i64 + 10,
+        "count (sqrt scale) per 1/10 decade",
+        1,
+        BLACK,
+    );
     c.write(path)
 }

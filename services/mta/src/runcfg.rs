@@ -9,7 +9,11 @@ use mtanet_ipc::stack::StackConfig;
 
 /// The config the processes get: the user's, with the run folder's checkpoint directory (unless
 /// it names one) and the mode; checked section by section before anything starts.
-pub fn effective_config(config: Option<&Path>, mode: Option<&str>, out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+pub fn effective_config(
+    config: Option<&Path>,
+    mode: Option<&str>,
+    out: &Path,
+) -> anyhow::Result<(PathBuf, PathBuf)> {
     let source = config
         .map(Path::to_path_buf)
         .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
@@ -32,7 +36,10 @@ pub fn effective_config(config: Option<&Path>, mode: Option<&str>, out: &Path) -
         Some(d) => PathBuf::from(d),
         None => {
             let d = std::path::absolute(out.join("checkpoints"))?;
-            trainer.insert("checkpoint_dir".into(), d.to_string_lossy().into_owned().into());
+            trainer.insert(
+                "checkpoint_dir".into(),
+                d.to_string_lossy().into_owned().into(),
+            );
             d
         }
     };
@@ -57,10 +64,17 @@ pub fn effective_config(config: Option<&Path>, mode: Option<&str>, out: &Path) -
 /// Checks the starting checkpoint and probes it on this run's track (the predictor trusts
 /// weights for control only with a passing probe, and a model learnt elsewhere has none here):
 /// writes `start.safetensors` in the run folder with the probe recorded, and returns its path.
-pub fn probed_copy(ck: &Path, file: &ConfigFile, track: &Path, out: &Path) -> anyhow::Result<PathBuf> {
+pub fn probed_copy(
+    ck: &Path,
+    file: &ConfigFile,
+    track: &Path,
+    out: &Path,
+) -> anyhow::Result<PathBuf> {
     use mtanet_models::checkpoint;
-    let bytes = std::fs::read(ck).with_context(|| format!("reading the checkpoint {}", ck.display()))?;
-    let mut loaded = checkpoint::from_bytes(&bytes).with_context(|| format!("the checkpoint {}", ck.display()))?;
+    let bytes =
+        std::fs::read(ck).with_context(|| format!("reading the checkpoint {}", ck.display()))?;
+    let mut loaded = checkpoint::from_bytes(&bytes)
+        .with_context(|| format!("the checkpoint {}", ck.display()))?;
     let agent: mtanet_control::AgentConfig = file.section("predictor.active_inference")?;
     let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
     let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());
@@ -74,10 +88,12 @@ pub fn probed_copy(ck: &Path, file: &ConfigFile, track: &Path, out: &Path) -> an
         track.display(),
         probe.rank_correlation
     );
-    loaded.meta = loaded.meta.clone().with_probe(Some((loaded.meta.step, probe.rank_correlation)));
+    loaded.meta = loaded
+        .meta
+        .clone()
+        .with_probe(Some((loaded.meta.step, probe.rank_correlation)));
     let (vs, _) = loaded.build()?;
     let path = out.join("start.safetensors");
     checkpoint::save(&path, &vs, &loaded.config, &loaded.meta)?;
     Ok(path)
 }
-

@@ -16,7 +16,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::latency::LatencySummary;
 use mtanet_ipc::stack::StackConfig;
-use mtanet_mta::stack::{bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace, wait_for_alive};
+use mtanet_mta::stack::{
+    bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace, wait_for_alive,
+};
 use mtanet_mta::supervisor::{Event, Supervisor};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -62,7 +64,13 @@ struct Pct {
 
 impl From<&LatencySummary> for Pct {
     fn from(s: &LatencySummary) -> Self {
-        Self { p50: s.p50_us, p90: s.p90_us, p99: s.p99_us, p999: s.p999_us, max: s.max_us }
+        Self {
+            p50: s.p50_us,
+            p90: s.p90_us,
+            p99: s.p99_us,
+            p999: s.p999_us,
+            max: s.max_us,
+        }
     }
 }
 
@@ -80,14 +88,20 @@ fn rss_and_fds(pid: u32) -> (u64, u64) {
                 .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse().ok()))
         })
         .unwrap_or(0);
-    let fds = std::fs::read_dir(format!("/proc/{pid}/fd")).map(|d| d.count() as u64).unwrap_or(0);
+    let fds = std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .map(|d| d.count() as u64)
+        .unwrap_or(0);
     (rss, fds)
 }
 
 pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     let out = args.out.clone();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let mode = if args.lockstep { "lockstep" } else { "realtime" };
+    let mode = if args.lockstep {
+        "lockstep"
+    } else {
+        "realtime"
+    };
     let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), Some(mode), &out)?;
     let file = ConfigFile::load(Some(&config))?;
     let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
@@ -101,7 +115,13 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
     let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
     let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
-    let prio = |binary: &str| stack.process.iter().find(|p| p.binary == binary).and_then(|p| p.realtime_priority);
+    let prio = |binary: &str| {
+        stack
+            .process
+            .iter()
+            .find(|p| p.binary == binary)
+            .and_then(|p| p.realtime_priority)
+    };
     let (sim_prio, pred_prio) = (prio("mta-simulator"), prio("mta-predictor"));
 
     // 1. The transport floor, alone on the machine.
@@ -120,15 +140,26 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         }
     }
     let peer = Kill(peer);
-    eprintln!("[soak] raw iceoryx2 ping-pong alone for {:.0} s", args.pingpong_seconds);
+    eprintln!(
+        "[soak] raw iceoryx2 ping-pong alone for {:.0} s",
+        args.pingpong_seconds
+    );
     let period = Duration::from_secs_f64(mtanet_ipc::CONTROL_PERIOD_S);
     let never = std::sync::atomic::AtomicBool::new(false);
-    let (idle, _) = crate::pingpong::measure(&ns, period, Duration::from_secs_f64(args.pingpong_seconds), &never, sim_prio)?;
+    let (idle, _) = crate::pingpong::measure(
+        &ns,
+        period,
+        Duration::from_secs_f64(args.pingpong_seconds),
+        &never,
+        sim_prio,
+    )?;
     // ...and all through the soak, beside the stack: the floor under the same load.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let pinger = {
         let (ns, stop) = (ns.clone(), std::sync::Arc::clone(&stop));
-        std::thread::spawn(move || crate::pingpong::measure(&ns, period, Duration::from_secs(86_400), &stop, sim_prio))
+        std::thread::spawn(move || {
+            crate::pingpong::measure(&ns, period, Duration::from_secs(86_400), &stop, sim_prio)
+        })
     };
 
     // 2. The stack.
@@ -136,24 +167,46 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     let mut sup = Supervisor::new(&out)?;
     let arg = |p: &Path| p.to_string_lossy().into_owned();
     for spec in &stack.process {
-        let mut a = vec!["--config".into(), arg(&config), "--namespace".into(), ns.clone()];
-        a.extend(["--summary".into(), arg(&out.join(format!("{}.json", spec.binary)))]);
+        let mut a = vec![
+            "--config".into(),
+            arg(&config),
+            "--namespace".into(),
+            ns.clone(),
+        ];
+        a.extend([
+            "--summary".into(),
+            arg(&out.join(format!("{}.json", spec.binary))),
+        ]);
         a.extend(spec.args.iter().cloned());
         match spec.binary.as_str() {
             "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
-            "mta-simulator" => a.extend(["--track".into(), arg(&track), "--max-steps".into(), steps.to_string()]),
+            "mta-simulator" => a.extend([
+                "--track".into(),
+                arg(&track),
+                "--max-steps".into(),
+                steps.to_string(),
+            ]),
             _ => {}
         }
         sup.add(spec, a)?;
     }
     for (k, spec) in stack.process.iter().enumerate() {
         sup.start(&spec.name)?;
-        if wait_for_alive(&ns, k + 1, Duration::from_secs(60)).alive.len() < k + 1 {
-            bail!("{} did not come up; see {}", spec.name, sup.log_path(&spec.binary).display());
+        if wait_for_alive(&ns, k + 1, Duration::from_secs(60))
+            .alive
+            .len()
+            < k + 1
+        {
+            bail!(
+                "{} did not come up; see {}",
+                spec.name,
+                sup.log_path(&spec.binary).display()
+            );
         }
     }
     let bar = ProgressBar::new(steps).with_style(
-        ProgressStyle::with_template("[soak] {msg} {bar:40} {elapsed}/{duration}").expect("valid template"),
+        ProgressStyle::with_template("[soak] {msg} {bar:40} {elapsed}/{duration}")
+            .expect("valid template"),
     );
     bar.set_message(format!("{mode}, {:.1} min", args.minutes));
     let t0 = Instant::now();
@@ -166,7 +219,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             }
         }
     };
-    let limit = Duration::from_secs_f64(120.0 + args.minutes * 60.0 * if args.lockstep { 4.0 } else { 1.5 });
+    let limit = Duration::from_secs_f64(
+        120.0 + args.minutes * 60.0 * if args.lockstep { 4.0 } else { 1.5 },
+    );
     let mut failure = None;
     'run: loop {
         for e in sup.poll()? {
@@ -187,7 +242,10 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         }
         sample(&sup, &mut last);
         let elapsed = t0.elapsed();
-        bar.set_position(((elapsed.as_secs_f64() / (args.minutes * 60.0)) * steps as f64).min(steps as f64) as u64);
+        bar.set_position(
+            ((elapsed.as_secs_f64() / (args.minutes * 60.0)) * steps as f64).min(steps as f64)
+                as u64,
+        );
         if elapsed > limit {
             failure = Some(format!("the simulator was still running after {limit:?}"));
             break;
@@ -196,7 +254,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     }
     bar.finish_and_clear();
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    let (pingpong, pingpong_lost) = pinger.join().map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))??;
+    let (pingpong, pingpong_lost) = pinger
+        .join()
+        .map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))??;
     drop(peer);
     let ends = sup.stop_all(Duration::from_secs(60));
     if let Some(f) = failure {
@@ -204,19 +264,31 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     }
     for (name, how) in &ends {
         if how.as_deref() != Some("exit code 0") && name != "simulator" {
-            bail!("{name} did not stop cleanly ({how:?}); logs in {}", out.display());
+            bail!(
+                "{name} did not stop cleanly ({how:?}); logs in {}",
+                out.display()
+            );
         }
     }
     let read = |n: &str| -> anyhow::Result<Value> {
         let p = out.join(n);
-        Ok(serde_json::from_str(&std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?)?)
+        Ok(serde_json::from_str(
+            &std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?,
+        )?)
     };
-    let (sim, pred, tr) = (read("mta-simulator.json")?, read("mta-predictor.json")?, read("mta-trainer.json")?);
+    let (sim, pred, tr) = (
+        read("mta-simulator.json")?,
+        read("mta-predictor.json")?,
+        read("mta-trainer.json")?,
+    );
     let leftovers = (nodes(&ns), leftover_shm(&ns));
     remove_namespace_files(&ns);
 
     let mut latency = BTreeMap::new();
-    latency.insert("obs_to_predictor", Pct::from(&lat(&pred["obs_to_predictor"])));
+    latency.insert(
+        "obs_to_predictor",
+        Pct::from(&lat(&pred["obs_to_predictor"])),
+    );
     latency.insert("predictor", Pct::from(&lat(&pred["compute"])));
     latency.insert("cmd_to_sim", Pct::from(&lat(&sim["cmd_to_sim"])));
     latency.insert("round_trip", Pct::from(&lat(&sim["round_trip"])));
@@ -256,12 +328,19 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         "clean_exit": leftovers.0.alive.is_empty() && leftovers.0.dead.is_empty() && leftovers.1.is_empty(),
     });
     mtanet_ipc::report::write_json(&out.join("soak.json"), &soak)?;
-    let hist = |v: &Value| -> Vec<[f64; 2]> { serde_json::from_value(v.clone()).unwrap_or_default() };
+    let hist =
+        |v: &Value| -> Vec<[f64; 2]> { serde_json::from_value(v.clone()).unwrap_or_default() };
     crate::report::latency_picture(
         &out.join("soak.png"),
         &[
-            ("raw ping-pong round trip (beside the stack)", &pingpong.histogram()),
-            ("observation -> predictor", &hist(&pred["obs_to_predictor_hist"])),
+            (
+                "raw ping-pong round trip (beside the stack)",
+                &pingpong.histogram(),
+            ),
+            (
+                "observation -> predictor",
+                &hist(&pred["obs_to_predictor_hist"]),
+            ),
             ("predictor compute", &hist(&pred["compute_hist"])),
             ("command -> simulator", &hist(&sim["cmd_to_sim_hist"])),
             ("simulator step", &hist(&sim["step_time_hist"])),
@@ -275,25 +354,68 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
 }
 
 fn print_table(soak: &Value, raw: &LatencySummary) {
-    println!("soak: {} {} steps ({} min)", soak["mode"], soak["steps"], soak["minutes"]);
-    println!("| {:<18} | {:>9} | {:>9} | {:>9} | {:>9} | {:>9} |", "latency (us)", "p50", "p90", "p99", "p99.9", "max");
-    println!("|{:-<20}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|", "", "", "", "", "", "");
-    for k in ["raw_pingpong_idle", "raw_pingpong", "round_trip", "obs_to_predictor", "predictor", "cmd_to_sim", "step", "plan"] {
+    println!(
+        "soak: {} {} steps ({} min)",
+        soak["mode"], soak["steps"], soak["minutes"]
+    );
+    println!(
+        "| {:<18} | {:>9} | {:>9} | {:>9} | {:>9} | {:>9} |",
+        "latency (us)", "p50", "p90", "p99", "p99.9", "max"
+    );
+    println!(
+        "|{:-<20}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|",
+        "", "", "", "", "", ""
+    );
+    for k in [
+        "raw_pingpong_idle",
+        "raw_pingpong",
+        "round_trip",
+        "obs_to_predictor",
+        "predictor",
+        "cmd_to_sim",
+        "step",
+        "plan",
+    ] {
         let p = &soak["latency_us"][k];
         let f = |q: &str| p[q].as_f64().unwrap_or(f64::NAN);
-        println!("| {k:<18} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} |", f("p50"), f("p90"), f("p99"), f("p999"), f("max"));
+        println!(
+            "| {k:<18} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} |",
+            f("p50"),
+            f("p90"),
+            f("p99"),
+            f("p999"),
+            f("max")
+        );
     }
     let l = &soak["latency_us"];
-    let transport = l["round_trip"]["p50"].as_f64().unwrap_or(f64::NAN) - l["predictor"]["p50"].as_f64().unwrap_or(0.0);
+    let transport = l["round_trip"]["p50"].as_f64().unwrap_or(f64::NAN)
+        - l["predictor"]["p50"].as_f64().unwrap_or(0.0);
     let ratio = transport / raw.p50_us.max(1e-9);
     let check = |ok: bool| if ok { "met" } else { "NOT met" };
     let pred_p99 = l["predictor"]["p99"].as_f64().unwrap_or(f64::NAN);
     let step_p999 = l["step"]["p999"].as_f64().unwrap_or(f64::NAN);
-    println!("targets: predictor p99 {:.0} us <= 1000: {}; step p99.9 {:.0} us <= 3000: {}; transport p50 {:.1} us = {:.2} x raw ping-pong <= 1.2: {}",
-        pred_p99, check(pred_p99 <= 1000.0), step_p999, check(step_p999 <= 3000.0), transport, ratio, check(ratio <= 1.2));
-    println!("deadline misses {}, late commands {}, dropped commands {}, dropped replay chunks {}, tick jitter p99 {:.0} us",
-        soak["deadline_misses"], soak["late_commands"], soak["dropped_commands"], soak["replay"]["dropped_chunks"], soak["tick_jitter_us"]["p99"].as_f64().unwrap_or(f64::NAN));
+    println!(
+        "targets: predictor p99 {:.0} us <= 1000: {}; step p99.9 {:.0} us <= 3000: {}; transport p50 {:.1} us = {:.2} x raw ping-pong <= 1.2: {}",
+        pred_p99,
+        check(pred_p99 <= 1000.0),
+        step_p999,
+        check(step_p999 <= 3000.0),
+        transport,
+        ratio,
+        check(ratio <= 1.2)
+    );
+    println!(
+        "deadline misses {}, late commands {}, dropped commands {}, dropped replay chunks {}, tick jitter p99 {:.0} us",
+        soak["deadline_misses"],
+        soak["late_commands"],
+        soak["dropped_commands"],
+        soak["replay"]["dropped_chunks"],
+        soak["tick_jitter_us"]["p99"].as_f64().unwrap_or(f64::NAN)
+    );
     for (name, p) in soak["processes"].as_object().into_iter().flatten() {
-        println!("{name}: rss {} -> {} kB, fds {} -> {}", p["rss_kb"]["start"], p["rss_kb"]["end"], p["fds"]["start"], p["fds"]["end"]);
+        println!(
+            "{name}: rss {} -> {} kB, fds {} -> {}",
+            p["rss_kb"]["start"], p["rss_kb"]["end"], p["fds"]["start"], p["fds"]["end"]
+        );
     }
 }

@@ -7,7 +7,9 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use mtanet_ipc::cli::CommonArgs;
-use mtanet_ipc::node::{IpcConfig, NodeCensus, ServiceEntry, census, create_node, create_observer_node, services};
+use mtanet_ipc::node::{
+    IpcConfig, NodeCensus, ServiceEntry, census, create_node, create_observer_node, services,
+};
 use mtanet_ipc::ports::Receiver;
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{CommandSource, ProcessStats, names, stamp, stats};
@@ -57,7 +59,8 @@ pub struct Status {
 
 /// A float as the message has it (f32), without the digits f32 does not carry.
 fn finite(x: f32) -> Option<f64> {
-    x.is_finite().then(|| format!("{x:.6e}").parse().unwrap_or(f64::from(x)))
+    x.is_finite()
+        .then(|| format!("{x:.6e}").parse().unwrap_or(f64::from(x)))
 }
 
 fn view(s: &ProcessStats) -> ProcessView {
@@ -82,10 +85,15 @@ fn view(s: &ProcessStats) -> ProcessView {
         }
         _ => {}
     }
-    let latency = [("p50", s.p50_us), ("p99", s.p99_us), ("p999", s.p999_us), ("max", s.max_us)]
-        .into_iter()
-        .map(|(k, v)| (k, f64::from(v)))
-        .collect();
+    let latency = [
+        ("p50", s.p50_us),
+        ("p99", s.p99_us),
+        ("p999", s.p999_us),
+        ("max", s.max_us),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k, f64::from(v)))
+    .collect();
     ProcessView {
         pid: s.pid,
         restarts: s.restarts,
@@ -100,7 +108,12 @@ fn view(s: &ProcessStats) -> ProcessView {
 }
 
 /// Listens on the stats topic for up to `listen`, or until every alive mtanet process spoke.
-fn listen(rx: &Receiver<ProcessStats>, latest: &mut BTreeMap<String, ProcessStats>, listen: Duration, expect: usize) -> anyhow::Result<()> {
+fn listen(
+    rx: &Receiver<ProcessStats>,
+    latest: &mut BTreeMap<String, ProcessStats>,
+    listen: Duration,
+    expect: usize,
+) -> anyhow::Result<()> {
     let until = Instant::now() + listen;
     let mut heard = std::collections::BTreeSet::new();
     loop {
@@ -116,10 +129,19 @@ fn listen(rx: &Receiver<ProcessStats>, latest: &mut BTreeMap<String, ProcessStat
     }
 }
 
-pub fn snapshot(ipc: &IpcConfig, rx: &Receiver<ProcessStats>, latest: &mut BTreeMap<String, ProcessStats>, wait: Duration) -> anyhow::Result<Status> {
+pub fn snapshot(
+    ipc: &IpcConfig,
+    rx: &Receiver<ProcessStats>,
+    latest: &mut BTreeMap<String, ProcessStats>,
+    wait: Duration,
+) -> anyhow::Result<Status> {
     let nodes = census(ipc)?;
     let roles = ["mta-simulator", "mta-predictor", "mta-trainer"];
-    let expect = nodes.alive.iter().filter(|n| roles.contains(&n.as_str())).count();
+    let expect = nodes
+        .alive
+        .iter()
+        .filter(|n| roles.contains(&n.as_str()))
+        .count();
     listen(rx, latest, wait, expect)?;
     Ok(Status {
         namespace: ipc.namespace.clone(),
@@ -131,24 +153,58 @@ pub fn snapshot(ipc: &IpcConfig, rx: &Receiver<ProcessStats>, latest: &mut BTree
 
 fn print_text(s: &Status) {
     println!("namespace {}", s.namespace);
-    let list = |v: &[String]| if v.is_empty() { "-".to_string() } else { v.join(", ") };
+    let list = |v: &[String]| {
+        if v.is_empty() {
+            "-".to_string()
+        } else {
+            v.join(", ")
+        }
+    };
     println!("  nodes alive: {}", list(&s.nodes.alive));
     if !s.nodes.dead.is_empty() {
-        println!("  nodes DEAD:  {} (run `mta status --cleanup`)", list(&s.nodes.dead));
+        println!(
+            "  nodes DEAD:  {} (run `mta status --cleanup`)",
+            list(&s.nodes.dead)
+        );
     }
     for e in &s.services {
-        println!("  service {:<22} {:<17} nodes {}", e.name, e.pattern, e.nodes);
+        println!(
+            "  service {:<22} {:<17} nodes {}",
+            e.name, e.pattern, e.nodes
+        );
     }
     if s.processes.is_empty() {
-        println!("  processes:   no stats heard (nothing running, or a build without the stats topic)");
+        println!(
+            "  processes:   no stats heard (nothing running, or a build without the stats topic)"
+        );
         return;
     }
-    println!("  {:<10} {:>7} {:>4} {:>9} {:>9} {:>5} {:>7}  {:<27}  detail", "process", "pid", "rst", "count", "rate/s", "cpu%", "rss MB", "latency us p50/p99/p99.9/max");
+    println!(
+        "  {:<10} {:>7} {:>4} {:>9} {:>9} {:>5} {:>7}  {:<27}  detail",
+        "process",
+        "pid",
+        "rst",
+        "count",
+        "rate/s",
+        "cpu%",
+        "rss MB",
+        "latency us p50/p99/p99.9/max"
+    );
     for (name, p) in &s.processes {
         let l = |k| p.latency_us.get(k).copied().unwrap_or(f64::NAN);
-        let lat = format!("{:.0}/{:.0}/{:.0}/{:.0}", l("p50"), l("p99"), l("p999"), l("max"));
+        let lat = format!(
+            "{:.0}/{:.0}/{:.0}/{:.0}",
+            l("p50"),
+            l("p99"),
+            l("p999"),
+            l("max")
+        );
         let detail: Vec<String> = p.detail.iter().map(|(k, v)| format!("{k} {v}")).collect();
-        let silent = if p.age_s > 3.0 { format!(" SILENT {:.0} s", p.age_s) } else { String::new() };
+        let silent = if p.age_s > 3.0 {
+            format!(" SILENT {:.0} s", p.age_s)
+        } else {
+            String::new()
+        };
         println!(
             "  {:<10} {:>7} {:>4} {:>9} {:>9} {:>5.0} {:>7.1}  {:<27}  {}{silent}",
             name,

@@ -37,10 +37,23 @@ pub enum State {
 /// What [`Supervisor::poll`] saw.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Event {
-    Failed { name: String, status: String, restart_in: Duration },
-    Restarted { name: String, pid: u32, restarts: u32 },
-    Done { name: String },
-    GaveUp { name: String, status: String },
+    Failed {
+        name: String,
+        status: String,
+        restart_in: Duration,
+    },
+    Restarted {
+        name: String,
+        pid: u32,
+        restarts: u32,
+    },
+    Done {
+        name: String,
+    },
+    GaveUp {
+        name: String,
+        status: String,
+    },
 }
 
 struct Child {
@@ -130,7 +143,10 @@ impl Supervisor {
         // stops each process with one signal (a second one makes it exit without clean-up).
         cmd.process_group(0)
             .args(&c.args)
-            .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+            .env(
+                "RUST_LOG",
+                std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
+            )
             // The process reports it on the stats topic (`mta status`).
             .env(mtanet_ipc::stats::RESTARTS_ENV, c.restarts.to_string())
             .stdout(Stdio::null())
@@ -140,15 +156,20 @@ impl Supervisor {
             // A refusal (no privilege) is checked and reported from the parent below.
             unsafe {
                 cmd.pre_exec(move || {
-                    let param = libc::sched_param { sched_priority: prio };
+                    let param = libc::sched_param {
+                        sched_priority: prio,
+                    };
                     libc::sched_setscheduler(0, libc::SCHED_FIFO, &param);
                     Ok(())
                 });
             }
         }
-        let mut child = cmd
-            .spawn()
-            .with_context(|| format!("starting {} (build with cargo build --release --workspace --bins)", path.display()))?;
+        let mut child = cmd.spawn().with_context(|| {
+            format!(
+                "starting {} (build with cargo build --release --workspace --bins)",
+                path.display()
+            )
+        })?;
         let pid = child.id();
         if let Some(prio) = c.spec.realtime_priority {
             // SAFETY: reads the policy of our own child.
@@ -184,7 +205,8 @@ impl Supervisor {
         for c in &mut self.children {
             match c.state {
                 State::Running => {
-                    let Some(status) = c.process.as_mut().and_then(|p| p.try_wait().ok().flatten()) else {
+                    let Some(status) = c.process.as_mut().and_then(|p| p.try_wait().ok().flatten())
+                    else {
                         continue;
                     };
                     c.process = None;
@@ -193,22 +215,36 @@ impl Supervisor {
                     }
                     let name = c.spec.name.clone();
                     if status.success() || !c.spec.restart.on_failure {
-                        c.state = if status.success() { State::Done } else { State::GaveUp };
+                        c.state = if status.success() {
+                            State::Done
+                        } else {
+                            State::GaveUp
+                        };
                         events.push(if status.success() {
                             Event::Done { name }
                         } else {
-                            Event::GaveUp { name, status: describe(status) }
+                            Event::GaveUp {
+                                name,
+                                status: describe(status),
+                            }
                         });
                         continue;
                     }
                     let policy = &c.spec.restart;
                     let window = Duration::from_secs_f64(policy.window_s);
-                    while c.recent.front().is_some_and(|t| now.duration_since(*t) > window) {
+                    while c
+                        .recent
+                        .front()
+                        .is_some_and(|t| now.duration_since(*t) > window)
+                    {
                         c.recent.pop_front();
                     }
                     if c.recent.len() as u32 >= policy.limit {
                         c.state = State::GaveUp;
-                        events.push(Event::GaveUp { name, status: describe(status) });
+                        events.push(Event::GaveUp {
+                            name,
+                            status: describe(status),
+                        });
                         continue;
                     }
                     // A process that had run well past the longest back-off starts over short.
@@ -218,7 +254,11 @@ impl Supervisor {
                     c.recent.push_back(now);
                     c.state = State::Restarting;
                     c.restart_at = Some(now + c.backoff);
-                    events.push(Event::Failed { name, status: describe(status), restart_in: c.backoff });
+                    events.push(Event::Failed {
+                        name,
+                        status: describe(status),
+                        restart_in: c.backoff,
+                    });
                     c.backoff = (c.backoff * 2).min(Duration::from_secs_f64(policy.max_backoff_s));
                 }
                 State::Restarting if c.restart_at.is_some_and(|t| now >= t) => {
@@ -236,13 +276,20 @@ impl Supervisor {
             let pid = self.start(&name)?;
             let restarts = self.children[i].restarts;
             self.note(&format!("restarted {name} (pid {pid}, restart {restarts})"));
-            events.push(Event::Restarted { name, pid, restarts });
+            events.push(Event::Restarted {
+                name,
+                pid,
+                restarts,
+            });
         }
         Ok(events)
     }
 
     pub fn state(&self, name: &str) -> Option<State> {
-        self.children.iter().find(|c| c.spec.name == name).map(|c| c.state)
+        self.children
+            .iter()
+            .find(|c| c.spec.name == name)
+            .map(|c| c.state)
     }
 
     pub fn pid(&self, name: &str) -> Option<u32> {
@@ -254,7 +301,10 @@ impl Supervisor {
 
     /// Restarts per process so far.
     pub fn restarts(&self) -> BTreeMap<String, u32> {
-        self.children.iter().map(|c| (c.spec.name.clone(), c.restarts)).collect()
+        self.children
+            .iter()
+            .map(|c| (c.spec.name.clone(), c.restarts))
+            .collect()
     }
 
     /// Stops every running process, last started first: one SIGTERM, then SIGKILL after

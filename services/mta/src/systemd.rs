@@ -25,18 +25,36 @@ pub struct SystemdArgs {
     user: String,
 }
 
-fn unit(spec: &ProcessSpec, after: Option<&ProcessSpec>, bin: &str, config: &str, user: &str) -> String {
+fn unit(
+    spec: &ProcessSpec,
+    after: Option<&ProcessSpec>,
+    bin: &str,
+    config: &str,
+    user: &str,
+) -> String {
     let r = &spec.restart;
     let mut u = String::new();
     let _ = writeln!(u, "# Rendered by `mta systemd` from [stack] in {config}.");
-    let _ = writeln!(u, "[Unit]\nDescription={}\nPartOf=mtanet.target", spec.description);
+    let _ = writeln!(
+        u,
+        "[Unit]\nDescription={}\nPartOf=mtanet.target",
+        spec.description
+    );
     if let Some(a) = after {
         let _ = writeln!(u, "After=mtanet-{}.service", a.name);
     }
     // The first start counts too: `limit` restarts within the window.
-    let _ = writeln!(u, "StartLimitIntervalSec={}\nStartLimitBurst={}\n", r.window_s, r.limit + 1);
+    let _ = writeln!(
+        u,
+        "StartLimitIntervalSec={}\nStartLimitBurst={}\n",
+        r.window_s,
+        r.limit + 1
+    );
     let _ = writeln!(u, "[Service]");
-    let _ = writeln!(u, "# READY=1 once its iceoryx2 ports exist; WATCHDOG=1 from the service loop.");
+    let _ = writeln!(
+        u,
+        "# READY=1 once its iceoryx2 ports exist; WATCHDOG=1 from the service loop."
+    );
     let _ = writeln!(u, "Type=notify\nNotifyAccess=main");
     let mut exec = format!("{bin}/{} --config {config}", spec.binary);
     for a in &spec.args {
@@ -45,16 +63,31 @@ fn unit(spec: &ProcessSpec, after: Option<&ProcessSpec>, bin: &str, config: &str
     }
     let _ = writeln!(u, "ExecStart={exec}\nWatchdogSec={}", spec.watchdog_s);
     if let Some(prio) = spec.realtime_priority {
-        let _ = writeln!(u, "# On the 50 Hz path: real-time scheduling (its planner thread drops back to normal).");
+        let _ = writeln!(
+            u,
+            "# On the 50 Hz path: real-time scheduling (its planner thread drops back to normal)."
+        );
         let _ = writeln!(u, "CPUSchedulingPolicy=fifo\nCPUSchedulingPriority={prio}");
     }
     // systemd 252 has no doubling back-off (RestartSteps= came in 254): the first delay is used.
     let restart = if r.on_failure { "on-failure" } else { "no" };
     let _ = writeln!(u, "Restart={restart}\nRestartSec={}", r.backoff_s);
-    let _ = writeln!(u, "# One SIGTERM ends the loop and releases shared memory; a second would force an immediate exit.");
-    let _ = writeln!(u, "KillSignal=SIGTERM\nKillMode=mixed\nTimeoutStopSec=15\nUser={user}");
-    let _ = writeln!(u, "# All mtanet processes must share /dev/shm and /tmp/iceoryx2: never PrivateTmp=, RemoveIPC=,");
-    let _ = writeln!(u, "# DynamicUser= (they would hide or delete the shared memory under the peers).\n");
+    let _ = writeln!(
+        u,
+        "# One SIGTERM ends the loop and releases shared memory; a second would force an immediate exit."
+    );
+    let _ = writeln!(
+        u,
+        "KillSignal=SIGTERM\nKillMode=mixed\nTimeoutStopSec=15\nUser={user}"
+    );
+    let _ = writeln!(
+        u,
+        "# All mtanet processes must share /dev/shm and /tmp/iceoryx2: never PrivateTmp=, RemoveIPC=,"
+    );
+    let _ = writeln!(
+        u,
+        "# DynamicUser= (they would hide or delete the shared memory under the peers).\n"
+    );
     let _ = writeln!(u, "[Install]\nWantedBy=mtanet.target");
     u
 }
@@ -66,12 +99,17 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
     stack.validate().map_err(|e| file.invalid("[stack]", e))?;
     let bin = args.bin.unwrap_or_else(mtanet_mta::stack::bin_dir);
     let bin = std::path::absolute(&bin)?;
-    std::fs::create_dir_all(&args.dest).with_context(|| format!("creating {}", args.dest.display()))?;
+    std::fs::create_dir_all(&args.dest)
+        .with_context(|| format!("creating {}", args.dest.display()))?;
     let (bin_s, cfg_s) = (bin.to_string_lossy(), config.to_string_lossy());
     let mut wants = Vec::new();
     for (i, spec) in stack.process.iter().enumerate() {
         let exe = bin.join(&spec.binary);
-        anyhow::ensure!(exe.exists(), "{} missing: build with cargo build --release --workspace --bins", exe.display());
+        anyhow::ensure!(
+            exe.exists(),
+            "{} missing: build with cargo build --release --workspace --bins",
+            exe.display()
+        );
         let after = i.checked_sub(1).map(|j| &stack.process[j]);
         let name = format!("mtanet-{}.service", spec.name);
         let path = args.dest.join(&name);
@@ -82,7 +120,12 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
     }
     let target = format!(
         "[Unit]\nDescription=mtanet stack ({} over iceoryx2)\nWants={}\n\n[Install]\nWantedBy=multi-user.target\n",
-        stack.process.iter().map(|p| p.name.as_str()).collect::<Vec<_>>().join(", "),
+        stack
+            .process
+            .iter()
+            .map(|p| p.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
         wants.join(" ")
     );
     let path = args.dest.join("mtanet.target");

@@ -52,7 +52,9 @@ pub struct UpArgs {
 }
 
 fn default_out() -> PathBuf {
-    let now = std::process::Command::new("date").arg("+%Y%m%d-%H%M%S").output();
+    let now = std::process::Command::new("date")
+        .arg("+%Y%m%d-%H%M%S")
+        .output();
     let stamp = now
         .ok()
         .and_then(|o| String::from_utf8(o.stdout).ok())
@@ -84,7 +86,10 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         std::fs::copy(ck, ck_dir.join("latest.safetensors"))?;
         let opt = mtanet_models::train::optimizer_path(args.checkpoint.as_ref().expect("given"));
         if opt.exists() {
-            std::fs::copy(&opt, mtanet_models::train::optimizer_path(&ck_dir.join("latest.safetensors")))?;
+            std::fs::copy(
+                &opt,
+                mtanet_models::train::optimizer_path(&ck_dir.join("latest.safetensors")),
+            )?;
         }
     }
     let info = RunInfo {
@@ -95,7 +100,11 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         config: args.config.clone(),
     };
     mtanet_ipc::report::write_json(&out.join("run.json"), &info)?;
-    eprintln!("[up] run folder {}; config {}", out.display(), config.display());
+    eprintln!(
+        "[up] run folder {}; config {}",
+        out.display(),
+        config.display()
+    );
 
     let arg = |p: &Path| p.to_string_lossy().into_owned();
     let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
@@ -124,7 +133,12 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
                 }
             }
             "mta-simulator" => {
-                a.extend(["--track".into(), arg(&track), "--trace".into(), arg(&out.join("trace.csv"))]);
+                a.extend([
+                    "--track".into(),
+                    arg(&track),
+                    "--trace".into(),
+                    arg(&out.join("trace.csv")),
+                ]);
                 if args.sim_seconds > 0.0 {
                     let steps = (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
                     a.extend(["--max-steps".into(), steps.to_string()]);
@@ -140,9 +154,17 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     for (k, name) in order.iter().enumerate() {
         let pid = sup.start(name)?;
         eprintln!("[up] started {name} (pid {pid})");
-        if k + 1 < order.len() && wait_for_alive(&ipc.namespace, k + 1, Duration::from_secs(60)).alive.len() < k + 1 {
+        if k + 1 < order.len()
+            && wait_for_alive(&ipc.namespace, k + 1, Duration::from_secs(60))
+                .alive
+                .len()
+                < k + 1
+        {
             sup.stop_all(Duration::from_secs(20));
-            bail!("{name} did not come up; see {}", sup.log_path(&stack.process[k].binary).display());
+            bail!(
+                "{name} did not come up; see {}",
+                sup.log_path(&stack.process[k].binary).display()
+            );
         }
     }
 
@@ -159,7 +181,10 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             None => failed.push(format!("{name} did not stop within 60 s")),
         }
     }
-    mtanet_ipc::report::write_json(&out.join("supervisor.json"), &serde_json::json!({ "restarts": sup.restarts() }))?;
+    mtanet_ipc::report::write_json(
+        &out.join("supervisor.json"),
+        &serde_json::json!({ "restarts": sup.restarts() }),
+    )?;
     let latest = ck_dir.join("latest.safetensors");
     if latest.exists() {
         std::fs::copy(&latest, out.join("model.safetensors"))?;
@@ -206,10 +231,21 @@ fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::
                 Event::GaveUp { name, status } => {
                     bail!("{name} failed ({status}) more often than its restart policy allows")
                 }
-                Event::Failed { name, status, restart_in } => {
-                    eprintln!("\n[up] {name} failed ({status}): restarting in {:.1} s", restart_in.as_secs_f64())
+                Event::Failed {
+                    name,
+                    status,
+                    restart_in,
+                } => {
+                    eprintln!(
+                        "\n[up] {name} failed ({status}): restarting in {:.1} s",
+                        restart_in.as_secs_f64()
+                    )
                 }
-                Event::Restarted { name, pid, restarts } => {
+                Event::Restarted {
+                    name,
+                    pid,
+                    restarts,
+                } => {
                     eprintln!("[up] restarted {name} (pid {pid}, restart {restarts})")
                 }
             }
@@ -228,7 +264,12 @@ fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::
         if last_print.elapsed() >= Duration::from_secs(if tty { 1 } else { 10 }) {
             last_print = Instant::now();
             let restarts: u32 = sup.restarts().values().sum();
-            let mut line = progress(last_obs.as_ref(), last_cmd.as_ref(), episodes_laps.1 + episodes_laps.2, start.elapsed());
+            let mut line = progress(
+                last_obs.as_ref(),
+                last_cmd.as_ref(),
+                episodes_laps.1 + episodes_laps.2,
+                start.elapsed(),
+            );
             if restarts > 0 {
                 line.push_str(&format!(" | restarts {restarts}"));
             }

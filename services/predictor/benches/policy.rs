@@ -30,11 +30,19 @@ fn main() {
         frame_skip: 5,
         ..ModelConfig::default()
     };
-    let bytes = Trainer::new(&cfg, &TrainConfig::default()).checkpoint_bytes(None).unwrap();
+    let bytes = Trainer::new(&cfg, &TrainConfig::default())
+        .checkpoint_bytes(None)
+        .unwrap();
     let mut live = LiveModel::from_bytes(&bytes, 1).unwrap();
     let frame = [0.5f32; 96];
-    println!("| {:<40} | {:>8} | {:>8} | {:>8} | {:>8} |", "predictor work (1 torch thread)", "p50 ms", "p99 ms", "p99.9 ms", "max ms");
-    println!("|{:-<42}|{:-<10}|{:-<10}|{:-<10}|{:-<10}|", "", "", "", "", "");
+    println!(
+        "| {:<40} | {:>8} | {:>8} | {:>8} | {:>8} |",
+        "predictor work (1 torch thread)", "p50 ms", "p99 ms", "p99.9 ms", "max ms"
+    );
+    println!(
+        "|{:-<42}|{:-<10}|{:-<10}|{:-<10}|{:-<10}|",
+        "", "", "", "", ""
+    );
     let mut s = LatencyStats::new();
     for _ in 0..500 {
         let t = Instant::now();
@@ -57,14 +65,26 @@ fn main() {
     let rows = 8;
     let preferred = PreferredLine {
         shape: FrameShape::CAR,
-        contrast: Contrast { floor: 0.85, amplitude: 0.75 },
+        contrast: Contrast {
+            floor: 0.85,
+            amplitude: 0.75,
+        },
         position_mean: vec![0.0; rows],
-        position_cov: (0..rows * rows).map(|i| if i / rows == i % rows { 0.01 } else { 0.0 }).collect(),
+        position_cov: (0..rows * rows)
+            .map(|i| if i / rows == i % rows { 0.01 } else { 0.0 })
+            .collect(),
         mass_mean: vec![3.0; rows],
         frames: 100,
     };
     let cost = Cost::new(preferred, CostConfig::default());
-    for pc in [PlannerConfig::default(), PlannerConfig { samples: 16, iterations: 2, ..Default::default() }] {
+    for pc in [
+        PlannerConfig::default(),
+        PlannerConfig {
+            samples: 16,
+            iterations: 2,
+            ..Default::default()
+        },
+    ] {
         let mut planner = Planner::new(&pc).unwrap();
         let mut s = LatencyStats::new();
         for _ in 0..40 {
@@ -73,6 +93,12 @@ fn main() {
             planner.plan(&mut im, &cost, Drive::new(8.0, 0.0)).unwrap();
             s.record_ns(t.elapsed().as_nanos() as u64);
         }
-        row(&format!("plan: CEM {} x {} iterations, H = {}", pc.samples, pc.iterations, pc.horizon), &s);
+        row(
+            &format!(
+                "plan: CEM {} x {} iterations, H = {}",
+                pc.samples, pc.iterations, pc.horizon
+            ),
+            &s,
+        );
     }
 }

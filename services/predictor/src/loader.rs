@@ -24,21 +24,31 @@ impl Loader {
     pub fn spawn(nice: i32) -> anyhow::Result<Self> {
         let (to, jobs) = mpsc::channel::<Job>();
         let (done, from) = mpsc::channel();
-        let thread = std::thread::Builder::new().name("weights-loader".into()).spawn(move || {
-            background_priority(nice, "weights loader");
-            for job in jobs {
-                let r = prepare(&job.bytes, job.version, job.probe);
-                if done.send((job.version, r)).is_err() {
-                    break;
+        let thread = std::thread::Builder::new()
+            .name("weights-loader".into())
+            .spawn(move || {
+                background_priority(nice, "weights loader");
+                for job in jobs {
+                    let r = prepare(&job.bytes, job.version, job.probe);
+                    if done.send((job.version, r)).is_err() {
+                        break;
+                    }
                 }
-            }
-        })?;
-        Ok(Self { to: Some(to), from, thread: Some(thread) })
+            })?;
+        Ok(Self {
+            to: Some(to),
+            from,
+            thread: Some(thread),
+        })
     }
 
     /// Queues a checkpoint (copied out of shared memory: the sample goes back at once).
     pub fn submit(&self, bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<()> {
-        let job = Job { bytes: bytes.to_vec(), version, probe };
+        let job = Job {
+            bytes: bytes.to_vec(),
+            version,
+            probe,
+        };
         self.to
             .as_ref()
             .expect("sender lives until drop")

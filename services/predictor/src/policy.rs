@@ -2,10 +2,13 @@
 //! weights as its world model, planning on a thread of its own. Weights are checked whole and
 //! against the wire contract before they replace anything; a bad blob leaves the car as it was.
 
-
 use anyhow::ensure;
-use mtanet_control::{Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, Threaded, Tick};
-use mtanet_ipc::{ACTION_DIM, CONTROL_PERIOD_S, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation};
+use mtanet_control::{
+    Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, Threaded, Tick,
+};
+use mtanet_ipc::{
+    ACTION_DIM, CONTROL_PERIOD_S, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation,
+};
 use mtanet_models::ModelConfig;
 use mtanet_models::live::{Imagined, LiveModel};
 
@@ -107,8 +110,14 @@ impl Policy {
     /// Takes in weights [`prepare`]d elsewhere: for the same network a copy in place (well under
     /// a millisecond, the recurrent state carries on), otherwise a new model and planner.
     pub fn install(&mut self, p: Prepared) -> anyhow::Result<()> {
-        let Prepared { model: fresh, imagined, probe, .. } = p;
-        let in_place = self.planner.is_some() && self.model.as_mut().is_some_and(|m| m.take_weights(&fresh));
+        let Prepared {
+            model: fresh,
+            imagined,
+            probe,
+            ..
+        } = p;
+        let in_place =
+            self.planner.is_some() && self.model.as_mut().is_some_and(|m| m.take_weights(&fresh));
         match self.planner.as_ref() {
             Some(planner) if in_place => {
                 planner.update(move |im| {
@@ -182,9 +191,15 @@ mod tests {
     use mtanet_models::{TrainConfig, Trainer};
 
     pub(crate) fn small_checkpoint(seed: u64, cfg: ModelConfig) -> Vec<u8> {
-        Trainer::new(&cfg, &TrainConfig { seed, ..Default::default() })
-            .checkpoint_bytes(None)
-            .unwrap()
+        Trainer::new(
+            &cfg,
+            &TrainConfig {
+                seed,
+                ..Default::default()
+            },
+        )
+        .checkpoint_bytes(None)
+        .unwrap()
     }
 
     fn small() -> ModelConfig {
@@ -222,7 +237,11 @@ mod tests {
                 p.after_command().unwrap();
             }
             let m = p.model.as_ref().unwrap();
-            m.state().layers[0].r.abs().sum(tch::Kind::Double).double_value(&[])
+            m.state().layers[0]
+                .r
+                .abs()
+                .sum(tch::Kind::Double)
+                .double_value(&[])
         };
         let base = fingerprint(&|_, _| {});
         let other_speed = fingerprint(&|o, s| o.wheel_velocity = [s as f32, 9.0]);
@@ -240,11 +259,21 @@ mod tests {
         bad.truncate(bad.len() / 2);
         assert!(p.load_weights(&bad, 1, f32::NAN).is_err());
         assert!(p.model.is_none());
-        let wrong = small_checkpoint(1, ModelConfig { action_dim: 3, ..small() });
+        let wrong = small_checkpoint(
+            1,
+            ModelConfig {
+                action_dim: 3,
+                ..small()
+            },
+        );
         let e = p.load_weights(&wrong, 2, f32::NAN).unwrap_err().to_string();
         assert!(e.contains("action values"), "{e}");
-        assert!(p.model.is_none(), "a checkpoint off the wire contract is refused");
-        p.load_weights(&small_checkpoint(1, small()), 3, 0.5).unwrap();
+        assert!(
+            p.model.is_none(),
+            "a checkpoint off the wire contract is refused"
+        );
+        p.load_weights(&small_checkpoint(1, small()), 3, 0.5)
+            .unwrap();
         let m = p.model.as_ref().unwrap();
         assert_eq!((m.version, m.probe), (3, Some(0.5)));
         // The model steps every frame_skip (2) observations.
@@ -253,19 +282,34 @@ mod tests {
             p.after_command().unwrap();
         }
         assert_eq!(p.model.as_ref().unwrap().steps, 3);
-        p.load_weights(&small_checkpoint(2, small()), 4, f32::NAN).unwrap();
+        p.load_weights(&small_checkpoint(2, small()), 4, f32::NAN)
+            .unwrap();
         let m = p.model.as_ref().unwrap();
-        assert_eq!((m.version, m.steps, m.probe), (4, 3, None), "same network: updated in place");
+        assert_eq!(
+            (m.version, m.steps, m.probe),
+            (4, 3, None),
+            "same network: updated in place"
+        );
         // Decoded on another thread (the weights loader), taken in by copying.
         let bytes = small_checkpoint(3, small());
         let theirs = bytes.clone();
-        let prepared = std::thread::spawn(move || prepare(&theirs, 5, 0.5)).join().unwrap().unwrap();
+        let prepared = std::thread::spawn(move || prepare(&theirs, 5, 0.5))
+            .join()
+            .unwrap()
+            .unwrap();
         p.install(prepared).unwrap();
         let m = p.model.as_ref().unwrap();
-        assert_eq!((m.version, m.steps, m.probe), (5, 3, Some(0.5)), "in place, the state carried on");
+        assert_eq!(
+            (m.version, m.steps, m.probe),
+            (5, 3, Some(0.5)),
+            "in place, the state carried on"
+        );
         let direct = LiveModel::from_bytes(&bytes, 5).unwrap();
         let w = |m: &LiveModel| m.model().layers[0].xhat.ws.shallow_clone();
-        assert!(w(m).equal(&w(&direct)), "the installed weights are the checkpoint's");
+        assert!(
+            w(m).equal(&w(&direct)),
+            "the installed weights are the checkpoint's"
+        );
         let earlier = LiveModel::from_bytes(&small_checkpoint(2, small()), 4).unwrap();
         assert!(!w(m).equal(&w(&earlier)), "and not the previous ones");
     }

@@ -4,14 +4,14 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use mtanet_ipc::stats::StatsPublisher;
+use mtanet_control::AgentStats;
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsReceiver;
-use mtanet_control::AgentStats;
 use mtanet_ipc::{Command, Observation, names, stamp};
 use serde::{Deserialize, Serialize};
 
@@ -132,11 +132,19 @@ pub fn run_with(
         waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
         install_weights(&loader, &mut policy, &mut summary)?;
         watchdog.pet();
-        ports.stats.borrow_mut().tick(summary.commands_sent, || stats.compute.summary(), |s| {
-            s.laps_or_driver_or_fill = stats.source;
-            s.faults = policy.stats().fallbacks.min(u32::MAX as u64) as u32;
-            s.quality = policy.model.as_ref().and_then(|m| m.error_ratio()).map_or(f32::NAN, |r| r as f32);
-        })?;
+        ports.stats.borrow_mut().tick(
+            summary.commands_sent,
+            || stats.compute.summary(),
+            |s| {
+                s.laps_or_driver_or_fill = stats.source;
+                s.faults = policy.stats().fallbacks.min(u32::MAX as u64) as u32;
+                s.quality = policy
+                    .model
+                    .as_ref()
+                    .and_then(|m| m.error_ratio())
+                    .map_or(f32::NAN, |r| r as f32);
+            },
+        )?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             let ratio = policy.model.as_ref().and_then(|m| m.error_ratio());
@@ -195,7 +203,10 @@ fn answer_observations(
         let t0 = Instant::now();
         let decision = policy.act(&obs)?;
         let compute_ns = t0.elapsed().as_nanos() as u64;
-        let (ratio, probe) = policy.model.as_ref().map_or((None, None), |m| (m.error_ratio(), m.probe));
+        let (ratio, probe) = policy
+            .model
+            .as_ref()
+            .map_or((None, None), |m| (m.error_ratio(), m.probe));
         ports.commands.send_with(|c| {
             c.step = obs.step;
             c.obs_stamp_ns = obs.stamp_ns;
@@ -225,7 +236,10 @@ fn answer_observations(
 /// Hands a checkpoint from the weights topic to the loader (decoding it here would stall the
 /// control loop for several ms).
 fn receive_weights(ports: &Ports, loader: &Loader, summary: &mut Summary) -> anyhow::Result<()> {
-    if let Some(r) = ports.weights.latest(|h, bytes| loader.submit(bytes, h.version, h.probe))? {
+    if let Some(r) = ports
+        .weights
+        .latest(|h, bytes| loader.submit(bytes, h.version, h.probe))?
+    {
         r?;
         summary.weights_received += 1;
     }
@@ -233,7 +247,11 @@ fn receive_weights(ports: &Ports, loader: &Loader, summary: &mut Summary) -> any
 }
 
 /// Takes in the checkpoints the loader has decoded: a copy in place, between two steps.
-fn install_weights(loader: &Loader, policy: &mut Policy, summary: &mut Summary) -> anyhow::Result<()> {
+fn install_weights(
+    loader: &Loader,
+    policy: &mut Policy,
+    summary: &mut Summary,
+) -> anyhow::Result<()> {
     while let Some((version, prepared)) = loader.try_take() {
         let t0 = Instant::now();
         let outcome = prepared.and_then(|p| {
@@ -250,7 +268,10 @@ fn install_weights(loader: &Loader, policy: &mut Policy, summary: &mut Summary) 
             Err(e) => {
                 // A damaged or mismatched checkpoint must not stop the car: keep what we had.
                 summary.weights_rejected += 1;
-                tracing::error!(version, "rejected weights, keeping the previous model: {e:#}");
+                tracing::error!(
+                    version,
+                    "rejected weights, keeping the previous model: {e:#}"
+                );
             }
         }
     }

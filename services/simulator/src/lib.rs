@@ -2,6 +2,7 @@
 //! predictor and trainer over iceoryx2 (`service`), or runs alone with the teacher driving for
 //! tests and data collection (`standalone`).
 
+pub mod chunk;
 pub mod config;
 pub mod control_stats;
 pub mod drive_stats;
@@ -9,6 +10,7 @@ pub mod pacing;
 pub mod recorder;
 pub mod service;
 pub mod standalone;
+pub mod summary;
 pub mod trace;
 
 // The wire format and the world must agree on the image; a mismatch must not compile.

@@ -139,7 +139,15 @@ fn main() -> anyhow::Result<()> {
         .as_deref()
         .map(|p| mtanet_simulator::trace::Trace::create(p, cfg.trace_every_steps))
         .transpose()?;
-    let summary = service::run(&node, &ports, &mut world, &mut teacher, &cfg, &shutdown, trace.as_mut());
+    let summary = service::run(
+        &node,
+        &ports,
+        &mut world,
+        &mut teacher,
+        &cfg,
+        &shutdown,
+        trace.as_mut(),
+    );
     systemd::stopping();
     if let Some(t) = trace {
         t.finish()?;

@@ -5,10 +5,10 @@
 
 use std::time::{Duration, Instant};
 
+use mtanet_ipc::TrainerStatus;
 use mtanet_ipc::ports::Receiver;
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
-use mtanet_ipc::TrainerStatus;
 use serde::{Deserialize, Serialize};
 
 /// Steps the simulator may run ahead of the trainer, in updates.
@@ -90,7 +90,11 @@ impl Pace {
                 self.start = Some((step, status.session_updates))
             }
             None => {
-                tracing::info!(step, rate = self.rate, "the trainer trains: pacing the simulation on its updates");
+                tracing::info!(
+                    step,
+                    rate = self.rate,
+                    "the trainer trains: pacing the simulation on its updates"
+                );
                 self.start = Some((step, status.session_updates));
             }
             _ => {}

@@ -6,21 +6,20 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use iceoryx2::prelude::*;
-use mtanet_ipc::latency::{LatencyStats, LatencySummary};
-use mtanet_ipc::ports::{Loaned, Receiver, Sender, TopicShape};
+use mtanet_ipc::latency::LatencyStats;
+use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::stats::StatsPublisher;
-use mtanet_ipc::{
-    Command, CommandSource, Observation, REPLAY_STEPS, ReplayChunk, TrainerStatus, names, stamp,
-};
+use mtanet_ipc::systemd::Watchdog;
+use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, TrainerStatus, names, stamp};
 use mtanet_scenes::{Referee, Sensors, Teacher, Verdict, World};
-use serde::{Deserialize, Serialize};
 
+use crate::chunk::ChunkBuilder;
 use crate::config::{MissPolicy, Mode, SimulatorConfig};
-use crate::control_stats::{ControlStats, ControlSummary};
-use crate::drive_stats::{DriveStats, LateralError};
-use crate::pacing::{Pace, PaceSummary};
+use crate::control_stats::ControlStats;
+use crate::drive_stats::DriveStats;
+use crate::pacing::Pace;
+pub use crate::summary::Summary;
 use crate::trace::Trace;
 
 /// The simulator's iceoryx2 endpoints.
@@ -42,58 +41,6 @@ impl Ports {
             stats: StatsPublisher::open(node, "simulator")?.into(),
         })
     }
-}
-
-/// What the simulator reports at exit (`--summary FILE.json`).
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Summary {
-    pub steps: u64,
-    /// Steps driven by a command from the predictor for that very step.
-    pub commands_received: u64,
-    /// Steps where a predictor was connected but its command did not come in time.
-    pub missed_commands: u64,
-    /// Real time: steps whose command missed the deadline (the same count as `missed_commands`;
-    /// in lockstep, where nothing has a deadline, 0).
-    pub deadline_misses: u64,
-    /// Commands that arrived for another step (late answers to earlier steps), dropped.
-    pub stale_commands: u64,
-    /// Non-finite commands rejected by the world.
-    pub rejected_commands: u64,
-    /// Steps driven by the teacher because no predictor was connected.
-    pub teacher_steps: u64,
-    pub replay_chunks_sent: u64,
-    /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
-    pub dead_nodes_cleaned: u64,
-    /// Times the car was lost (or drove the wrong way) and was put back at the start
-    /// (episodes - 1).
-    pub resets: u64,
-    /// Of those, the times it drove the wrong way round.
-    pub wrong_way_resets: u64,
-    /// Observation published -> its command received, as seen by the simulator.
-    pub round_trip: LatencySummary,
-    /// Wall time of one step's work (sensors, publishing, waiting for the command, physics);
-    /// in real time without the wait for the next tick.
-    pub step_time: LatencySummary,
-    /// Real time: how far past its 50 Hz tick each step finished (floor 1 us).
-    pub tick_late: LatencySummary,
-    /// Command published by the predictor -> taken in here (transport and wake-up).
-    pub cmd_to_sim: LatencySummary,
-    /// Real time: how late each step started against its 50 Hz schedule.
-    pub tick_jitter: LatencySummary,
-    /// Steps whose work took longer than the control period (their tick was missed).
-    pub overruns: u64,
-    /// Histograms (upper bound in us, count), for pictures.
-    pub step_time_hist: Vec<[f64; 2]>,
-    pub round_trip_hist: Vec<[f64; 2]>,
-    pub cmd_to_sim_hist: Vec<[f64; 2]>,
-    pub laps: u32,
-    pub lateral_error_m: LateralError,
-    /// Who drove, and how well (per command source).
-    pub control: ControlSummary,
-    /// Lockstep pacing on the trainer's updates.
-    pub pace: PaceSummary,
-    pub sim_seconds: f64,
-    pub wall_seconds: f64,
 }
 
 /// Consecutive missed commands after which the simulator checks for a dead predictor.
@@ -141,7 +88,12 @@ pub fn run(
     let mut last_log = start;
     let mut step = 0u64;
     let mut episode = 0u32;
-    let mut referee = Referee::new(cfg.reset_after_lost_s, period, cfg.lost_lateral_m, cfg.reverse_reset_m);
+    let mut referee = Referee::new(
+        cfg.reset_after_lost_s,
+        period,
+        cfg.lost_lateral_m,
+        cfg.reverse_reset_m,
+    );
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = Instant::now();
@@ -226,7 +178,14 @@ pub fn run(
         }
         if cfg.replay {
             chunk.pace = pace.rate();
-            chunk.push(&ports.replay, step, episode, &sensors, applied, applied_source)?;
+            chunk.push(
+                &ports.replay,
+                step,
+                episode,
+                &sensors,
+                applied,
+                applied_source,
+            )?;
         }
         if world.step(cmd) {
             last_cmd = cmd;
@@ -244,7 +203,12 @@ pub fn run(
                 Verdict::Lost => "car lost the line",
                 _ => "car drives the wrong way round",
             };
-            tracing::warn!(step, episode, lateral_m = world.truth().lateral_m, "{why}: back to the start, new episode");
+            tracing::warn!(
+                step,
+                episode,
+                lateral_m = world.truth().lateral_m,
+                "{why}: back to the start, new episode"
+            );
             world.reset();
             teacher.reset();
             drive.end_episode();
@@ -272,10 +236,14 @@ pub fn run(
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }
         watchdog.pet();
-        ports.stats.borrow_mut().tick(step, || step_time.summary(), |s| {
-            s.laps_or_driver_or_fill = drive.laps();
-            s.faults = summary.deadline_misses.min(u32::MAX as u64) as u32;
-        })?;
+        ports.stats.borrow_mut().tick(
+            step,
+            || step_time.summary(),
+            |s| {
+                s.laps_or_driver_or_fill = drive.laps();
+                s.faults = summary.deadline_misses.min(u32::MAX as u64) as u32;
+            },
+        )?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             tracing::info!(
@@ -429,59 +397,5 @@ fn await_command(
         }
         // Short slices so a signal ends the wait quickly even if no command ever comes.
         ports.commands.wait(left.min(Duration::from_millis(50)))?;
-    }
-}
-
-/// Writes consecutive steps straight into a loaned replay sample in shared memory; sends it when full.
-#[derive(Default)]
-struct ChunkBuilder {
-    sample: Option<Loaned<ReplayChunk>>,
-    sent: u64,
-    /// Written into each chunk (see `ReplayChunk::pace`).
-    pace: f32,
-}
-
-impl ChunkBuilder {
-    /// Adds a step: its frame and the command (and its source) that led to it. Sends the chunk
-    /// once it holds `REPLAY_STEPS` steps.
-    fn push(
-        &mut self,
-        replay: &Sender<ReplayChunk>,
-        step: u64,
-        episode: u32,
-        s: &Sensors,
-        applied: [f32; 2],
-        source: CommandSource,
-    ) -> anyhow::Result<()> {
-        let sample = match self.sample.as_mut() {
-            Some(sample) => sample,
-            None => {
-                let mut fresh = replay.loan_zeroed().context("loaning a replay chunk")?;
-                let c = fresh.payload_mut();
-                c.seq = self.sent;
-                c.first_step = step;
-                c.episode = episode;
-                self.sample.insert(fresh)
-            }
-        };
-        let c = sample.payload_mut();
-        let i = c.len as usize;
-        c.images[i] = s.image;
-        c.actions[i] = applied;
-        c.sources[i] = source as u8;
-        c.len += 1;
-        c.pace = self.pace;
-        if c.len as usize == REPLAY_STEPS {
-            c.stamp_ns = stamp::monotonic_ns();
-            let full = self.sample.take().expect("a chunk is being filled");
-            replay.send_loaned(full).context("sending a replay chunk")?;
-            self.sent += 1;
-        }
-        Ok(())
-    }
-
-    /// Drops a partly filled chunk (its loan returns to the pool unsent).
-    fn discard(&mut self) {
-        self.sample = None;
     }
 }

@@ -16,7 +16,8 @@ pub struct Trace {
 
 impl Trace {
     pub fn create(path: &Path, every: u64) -> anyhow::Result<Self> {
-        let file = File::create(path).with_context(|| format!("creating the trace {}", path.display()))?;
+        let file =
+            File::create(path).with_context(|| format!("creating the trace {}", path.display()))?;
         let mut out = BufWriter::new(file);
         writeln!(out, "step,episode,x,y,lateral_m,source")?;
         Ok(Self {

@@ -81,7 +81,13 @@ fn replay_and_observations_carry_the_applied_command_and_its_source() {
         ..Default::default()
     };
     let cmd_of = |step: u64| [4.0 + (step % 7) as f32, 6.0 - (step % 3) as f32];
-    let src_of = |step: u64| if step % 5 == 0 { CommandSource::Exploration } else { CommandSource::ActiveInference };
+    let src_of = |step: u64| {
+        if step % 5 == 0 {
+            CommandSource::Exploration
+        } else {
+            CommandSource::ActiveInference
+        }
+    };
     let d = common::drive_with("act", cfg, |o| (cmd_of(o.step), src_of(o.step)));
     assert_eq!(d.chunks.len(), 5, "{} chunks", d.chunks.len());
     for c in &d.chunks {
@@ -99,7 +105,11 @@ fn replay_and_observations_carry_the_applied_command_and_its_source() {
     for o in &d.observations[1..] {
         assert_eq!(o.command, cmd_of(o.step - 1), "step {}", o.step);
         assert_eq!(o.lockstep, 1);
-        assert_ne!(o.wheel_velocity, o.command, "the measured speed lags: step {}", o.step);
+        assert_ne!(
+            o.wheel_velocity, o.command,
+            "the measured speed lags: step {}",
+            o.step
+        );
     }
     let s = &d.summary.control;
     assert_eq!(s.steps["exploration"], 20);

@@ -53,7 +53,16 @@ fn the_simulator_waits_for_the_trainers_updates_and_runs_free_without_it() {
         let ports = Ports::open(&node).unwrap();
         let mut world = World::new(&SceneConfig::default()).unwrap();
         let mut teacher = Teacher::new(&TeacherConfig::default());
-        run(&node, &ports, &mut world, &mut teacher, &cfg, &Shutdown::manual(), None).unwrap()
+        run(
+            &node,
+            &ports,
+            &mut world,
+            &mut teacher,
+            &cfg,
+            &Shutdown::manual(),
+            None,
+        )
+        .unwrap()
     });
     // Answers every observation; returns the last step seen once none came for `quiet`.
     let mut last = None::<u64>;

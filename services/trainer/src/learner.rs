@@ -8,8 +8,8 @@ use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_WIDTH, WeightsHeader};
 use mtanet_models::Trainer;
 use mtanet_models::checkpoint::{CheckpointError, SCHEMA_VERSION};
-use mtanet_models::train::optimizer_path;
 use mtanet_models::train::UpdateStats;
+use mtanet_models::train::optimizer_path;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use tch::Tensor;
@@ -93,10 +93,7 @@ impl Learner {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("creating trainer.checkpoint_dir {}", dir.display()))?;
         }
-        let checkpoint = cfg
-            .checkpoint_dir
-            .as_ref()
-            .map(|d| d.join(LATEST));
+        let checkpoint = cfg.checkpoint_dir.as_ref().map(|d| d.join(LATEST));
         let saved_step = match &cfg.checkpoint_dir {
             Some(dir) => resume(&mut trainer, dir)?,
             None => 0,
@@ -158,7 +155,8 @@ impl Learner {
     ) -> anyhow::Result<Option<UpdateStats>> {
         let b = self.trainer.train_cfg.batch_size.max(1) as usize;
         let skip = self.frame_skip();
-        let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip, self.mirror) else {
+        let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip, self.mirror)
+        else {
             return Ok(None);
         };
         let (images, actions) = to_tensors(&batch);
@@ -320,17 +318,31 @@ mod tests {
         saved_at(&mut l, 10);
         saved_at(&mut l, 20);
         assert!(dir.path().join(PREVIOUS).exists() && dir.path().join(LATEST).exists());
-        assert_eq!(Learner::new(&c).unwrap().updates(), 20, "the newest when it is good");
+        assert_eq!(
+            Learner::new(&c).unwrap().updates(),
+            20,
+            "the newest when it is good"
+        );
         truncate(&dir.path().join(LATEST));
-        assert_eq!(Learner::new(&c).unwrap().updates(), 10, "the previous when the newest is damaged");
+        assert_eq!(
+            Learner::new(&c).unwrap().updates(),
+            10,
+            "the previous when the newest is damaged"
+        );
         truncate(&dir.path().join(PREVIOUS));
-        assert_eq!(Learner::new(&c).unwrap().updates(), 0, "neither: a fresh start, not a crash");
+        assert_eq!(
+            Learner::new(&c).unwrap().updates(),
+            0,
+            "neither: a fresh start, not a crash"
+        );
         // A checkpoint of another network is the operator's call, not a silent fresh start.
         let mut other = cfg(dir.path());
         other.model.channels = vec![8, 4, 4];
         let mut l = Learner::new(&c).unwrap();
         saved_at(&mut l, 30);
-        let e = Learner::new(&other).err().expect("a config mismatch is an error");
+        let e = Learner::new(&other)
+            .err()
+            .expect("a config mismatch is an error");
         assert!(format!("{e:#}").contains("configuration differs"), "{e:#}");
     }
 
@@ -341,13 +353,26 @@ mod tests {
         let mut l = Learner::new(&c).unwrap();
         saved_at(&mut l, 10);
         // The disk refuses the next write: a directory sits where the temporary file would go.
-        let blocker = dir.path().join(format!(".{LATEST}.tmp{}", std::process::id()));
+        let blocker = dir
+            .path()
+            .join(format!(".{LATEST}.tmp{}", std::process::id()));
         std::fs::create_dir(&blocker).unwrap();
         l.trainer.set_step(20);
-        assert!(l.save().is_err(), "the write must fail for the test to mean anything");
-        assert_eq!(Learner::new(&c).unwrap().updates(), 10, "the step-10 checkpoint is still there");
+        assert!(
+            l.save().is_err(),
+            "the write must fail for the test to mean anything"
+        );
+        assert_eq!(
+            Learner::new(&c).unwrap().updates(),
+            10,
+            "the step-10 checkpoint is still there"
+        );
         std::fs::remove_dir(&blocker).unwrap();
         saved_at(&mut l, 30);
-        assert_eq!(Learner::new(&c).unwrap().updates(), 30, "saving works again");
+        assert_eq!(
+            Learner::new(&c).unwrap().updates(),
+            30,
+            "saving works again"
+        );
     }
 }

@@ -66,7 +66,11 @@ impl ReplayBuffer {
         }
         self.next_seq = Some(c.seq + 1);
         self.received += 1;
-        self.pace = if c.pace.is_finite() { c.pace.max(0.0) } else { 0.0 };
+        self.pace = if c.pace.is_finite() {
+            c.pace.max(0.0)
+        } else {
+            0.0
+        };
         self.steps_received += u64::from(c.len);
         let len = (c.len as usize).min(c.images.len());
         for &s in &c.sources[..len] {
@@ -132,7 +136,12 @@ impl ReplayBuffer {
     }
 
     /// Copies `span` consecutive steps from (c, o) into flat slices.
-    fn gather(&self, c: usize, o: usize, span: usize) -> (Vec<[f32; IMAGE_PIXELS]>, Vec<[f32; ACTION_DIM]>) {
+    fn gather(
+        &self,
+        c: usize,
+        o: usize,
+        span: usize,
+    ) -> (Vec<[f32; IMAGE_PIXELS]>, Vec<[f32; ACTION_DIM]>) {
         let (mut imgs, mut acts) = (Vec::with_capacity(span), Vec::with_capacity(span));
         let (mut i, mut off) = (c, o);
         while imgs.len() < span {
@@ -171,7 +180,8 @@ impl ReplayBuffer {
             let found = (0..64).find_map(|_| {
                 let c = rng.random_range(0..self.chunks.len());
                 let o = rng.random_range(0..self.chunks[c].images.len().max(1));
-                (self.chunks[c].images.len() > o && self.contiguous_from(c, o, span)).then_some((c, o))
+                (self.chunks[c].images.len() > o && self.contiguous_from(c, o, span))
+                    .then_some((c, o))
             });
             let (c, o) = found?;
             let (mut imgs, mut acts) = self.gather(c, o, span);
@@ -179,7 +189,15 @@ impl ReplayBuffer {
                 mirror(&mut imgs, &mut acts);
             }
             // The window's first frame comes skip - 1 steps in, after the commands of its action.
-            push_window(&imgs, &acts, skip - 1, skip, steps, &mut out.images, &mut out.actions);
+            push_window(
+                &imgs,
+                &acts,
+                skip - 1,
+                skip,
+                steps,
+                &mut out.images,
+                &mut out.actions,
+            );
         }
         Some(out)
     }
@@ -215,7 +233,11 @@ mod tests {
             let step = (first_step + i as u64) as f32;
             c.images[i] = [step; IMAGE_PIXELS];
             c.actions[i] = [step, 0.0];
-            c.sources[i] = if i < 5 { CommandSource::Exploration as u8 } else { 0 };
+            c.sources[i] = if i < 5 {
+                CommandSource::Exploration as u8
+            } else {
+                0
+            };
         }
         c
     }
@@ -226,7 +248,10 @@ mod tests {
         for s in [0, 1, 4] {
             b.push(&chunk(s, s * 20, 0));
         }
-        assert_eq!((b.received(), b.steps_received(), b.lost(), b.len()), (3, 60, 2, 2));
+        assert_eq!(
+            (b.received(), b.steps_received(), b.lost(), b.len()),
+            (3, 60, 2, 2)
+        );
         assert!((b.exploration_fraction() - 0.25).abs() < 1e-12);
     }
 
@@ -242,16 +267,26 @@ mod tests {
         let batch = b.sample(&mut rng, 32, 4, 5, false).unwrap();
         for w in batch.images.chunks(4 * IMAGE_PIXELS) {
             let f: Vec<f32> = w.chunks(IMAGE_PIXELS).map(|p| p[0]).collect();
-            assert!(f.windows(2).all(|p| p[1] - p[0] == 5.0), "frames 5 steps apart: {f:?}");
+            assert!(
+                f.windows(2).all(|p| p[1] - p[0] == 5.0),
+                "frames 5 steps apart: {f:?}"
+            );
             let ep = |s: f32| if s < 60.0 { 0 } else { 1 };
-            assert_eq!(ep(f[0] - 4.0), ep(f[3]), "a window never spans a reset: {f:?}");
+            assert_eq!(
+                ep(f[0] - 4.0),
+                ep(f[3]),
+                "a window never spans a reset: {f:?}"
+            );
         }
         // The action of a model step is the mean command of the 5 steps before its frame.
         let (f0, a0) = (batch.images[IMAGE_PIXELS], batch.actions[2]);
         assert_eq!(a0, f0 - 2.0, "mean of steps f-4..=f");
         // 12 model steps (60 steps) fit only in episode 0 from its very start: never found in
         // episode 1, and all windows come from episode 0.
-        assert!(b.sample(&mut rng, 4, 13, 5, false).is_none(), "65 steps exist nowhere");
+        assert!(
+            b.sample(&mut rng, 4, 13, 5, false).is_none(),
+            "65 steps exist nowhere"
+        );
     }
 
     #[test]

@@ -4,11 +4,11 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ReplayChunk, TrainerStatus, names, stamp};
@@ -63,7 +63,13 @@ pub struct Summary {
 }
 
 /// Tells the simulator (pacing) how far training has come.
-fn publish_status(ports: &Ports, learner: &Learner, buffer: &ReplayBuffer, session: u64, training: bool) -> anyhow::Result<()> {
+fn publish_status(
+    ports: &Ports,
+    learner: &Learner,
+    buffer: &ReplayBuffer,
+    session: u64,
+    training: bool,
+) -> anyhow::Result<()> {
     ports.status.send_with(|s| {
         s.updates = learner.updates();
         s.session_updates = session;
@@ -163,11 +169,15 @@ pub fn run_with(
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
-        ports.stats.borrow_mut().tick(learner.updates(), || update_time.summary(), |s| {
-            s.laps_or_driver_or_fill = buffer.len() as u32;
-            s.faults = buffer.lost().min(u32::MAX as u64) as u32;
-            s.quality = learner.last_loss().map_or(f32::NAN, |l| l as f32);
-        })?;
+        ports.stats.borrow_mut().tick(
+            learner.updates(),
+            || update_time.summary(),
+            |s| {
+                s.laps_or_driver_or_fill = buffer.len() as u32;
+                s.faults = buffer.lost().min(u32::MAX as u64) as u32;
+                s.quality = learner.last_loss().map_or(f32::NAN, |l| l as f32);
+            },
+        )?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             tracing::info!(

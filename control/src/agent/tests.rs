@@ -1,0 +1,359 @@
+use super::*;
+use crate::planner::Imagination;
+use crate::planner::PlannerConfig;
+use crate::preference::tests::line_frame;
+use crate::worker::{Inline, PlanDone};
+
+/// A model that counts its steps and reports the health it is given.
+struct Toy {
+    skip: usize,
+    health: Health,
+    observed: Vec<Wheels>,
+}
+
+impl AgentModel for Toy {
+    type Snapshot = f32;
+    fn frame_skip(&self) -> Option<usize> {
+        Some(self.skip)
+    }
+    fn observe(&mut self, _: &[f32], a: Wheels) -> anyhow::Result<()> {
+        self.observed.push(a);
+        Ok(())
+    }
+    fn reset(&mut self) {}
+    fn snapshot(&mut self) -> anyhow::Result<f32> {
+        Ok(0.0)
+    }
+    fn health(&self) -> Health {
+        self.health
+    }
+}
+
+/// Imagines the line where it is, whatever the plan: every plan sees the same frames.
+struct Still;
+
+impl Imagination for Still {
+    type Start = f32;
+    fn start(&mut self, _: f32, _: Wheels) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
+        Ok(plans
+            .iter()
+            .map(|p| p.iter().flat_map(|_| line_frame(6.0, 0.0)).collect())
+            .collect())
+    }
+}
+
+/// A planner that never finishes in time.
+struct Never(bool);
+
+impl PlanService<f32> for Never {
+    fn submit(&mut self, _: PlanJob<f32>) -> anyhow::Result<()> {
+        self.0 = true;
+        Ok(())
+    }
+    fn wait(&mut self, _: Duration) -> Option<PlanDone> {
+        None
+    }
+    fn idle(&self) -> bool {
+        !self.0
+    }
+}
+
+fn cfg() -> AgentConfig {
+    AgentConfig {
+        preference_frames: 5,
+        trust_after_steps: 2,
+        ..Default::default()
+    }
+}
+
+fn agent(cfg: &AgentConfig) -> Agent {
+    let off = ExplorationConfig {
+        enabled: false,
+        ..Default::default()
+    };
+    Agent::new(cfg, &ReactiveConfig::default(), &off, FrameShape::CAR, 0.02)
+}
+
+fn tick<'a>(frame: &'a [f32], line: [bool; 3], applied: Wheels) -> Tick<'a> {
+    Tick {
+        episode: 0,
+        frame,
+        line,
+        applied,
+        lockstep: true,
+    }
+}
+
+const CENTRED: [bool; 3] = [false, true, false];
+
+#[test]
+fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
+    let frame = line_frame(6.0, 0.0);
+    let mut model = Toy {
+        skip: 3,
+        health: Health::default(),
+        observed: Vec::new(),
+    };
+    let mut plans = Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    );
+    let mut a = agent(&cfg());
+    let mut applied = [0.0; 2];
+    for _ in 0..30 {
+        let d = a
+            .step(&tick(&frame, CENTRED, applied), &mut model, &mut plans)
+            .unwrap();
+        assert_eq!(
+            d.driver,
+            Driver::Reactive,
+            "an untrusted model never drives"
+        );
+        applied = d.wheels;
+    }
+    assert_eq!(
+        model.observed.len(),
+        10,
+        "a model step every 3 control steps"
+    );
+    assert_eq!(
+        model.observed[1],
+        [8.0, 8.0],
+        "the mean command of its segment"
+    );
+    model.health = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.9),
+    };
+    let mut segments: Vec<Vec<Wheels>> = Vec::new();
+    for k in 0..12 {
+        let d = a
+            .step(&tick(&frame, CENTRED, applied), &mut model, &mut plans)
+            .unwrap();
+        assert_eq!(d.driver, Driver::ActiveInference, "step {k}");
+        if k % 3 == 0 {
+            segments.push(Vec::new());
+        }
+        segments.last_mut().unwrap().push(d.wheels);
+        applied = d.wheels;
+    }
+    for s in &segments {
+        assert!(
+            s.iter().all(|w| *w == s[0]),
+            "a command is held over its segment: {s:?}"
+        );
+    }
+    assert_eq!(a.stats.switches_to_active_inference, 1);
+    assert_eq!(
+        a.stats.plans, 3,
+        "each later segment takes up the plan made a segment ago"
+    );
+    // With the line held in view, only the priors decide: straight on, near the preferred speed.
+    let d = Drive::from_wheels(segments[2][0]);
+    assert!(d.turn.abs() < 2.0 && d.speed > 5.0, "{d:?}");
+}
+
+#[test]
+fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
+    let frame = line_frame(6.0, 0.0);
+    let trusted = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.9),
+    };
+    let mut model = Toy {
+        skip: 2,
+        health: trusted,
+        observed: Vec::new(),
+    };
+    let mut plans = Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    );
+    let mut a = agent(&cfg());
+    for _ in 0..30 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    // The bar off the line while the camera still sees it (cutting a bend): not lost.
+    for _ in 0..40 {
+        a.step(&tick(&frame, [false; 3], [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        a.driving_by_active_inference(),
+        "the camera still follows the line"
+    );
+    // 0.5 s with neither a line sensor on nor a line in view (25 steps), then the fallback.
+    let floor = [0.85f32; 96];
+    let mut drivers = Vec::new();
+    for _ in 0..30 {
+        drivers.push(
+            a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans)
+                .unwrap()
+                .driver,
+        );
+    }
+    assert_eq!(
+        drivers
+            .iter()
+            .filter(|d| **d == Driver::ActiveInference)
+            .count(),
+        24
+    );
+    assert_eq!(drivers.last(), Some(&Driver::Fallback));
+    assert_eq!(a.stats.fallbacks, 1);
+    // Found again for 0.5 s, the middle sensor on it: active inference resumes.
+    let mut back = None;
+    for k in 0..40 {
+        let d = a
+            .step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        if d.driver == Driver::ActiveInference {
+            back = Some(k);
+            break;
+        }
+    }
+    let k = back.expect("active inference resumes");
+    assert!(
+        (24..=26).contains(&k),
+        "after ~25 steps with the line found, at a model step: {k}"
+    );
+    assert_eq!(a.stats.switches_to_active_inference, 2);
+}
+
+#[test]
+fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
+    let frame = line_frame(6.0, 0.0);
+    let trusted = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.9),
+    };
+    let mut model = Toy {
+        skip: 2,
+        health: trusted,
+        observed: Vec::new(),
+    };
+    let mut a = agent(&cfg());
+    let mut never = Never(false);
+    let mut last = [0.0; 2];
+    for _ in 0..40 {
+        let d = a
+            .step(
+                &Tick {
+                    lockstep: false,
+                    ..tick(&frame, CENTRED, last)
+                },
+                &mut model,
+                &mut never,
+            )
+            .unwrap();
+        last = d.wheels;
+    }
+    assert!(
+        a.driving_by_active_inference(),
+        "planning late is no reason to stop"
+    );
+    assert!(a.stats.late_plans >= 5, "{:?}", a.stats);
+    assert_eq!(a.stats.plans, 0);
+    assert_eq!(last, [8.0, 8.0], "the command held from the switch");
+}
+
+#[test]
+fn takes_over_only_with_the_car_on_the_line() {
+    let frame = line_frame(6.0, 0.0);
+    let trusted = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.9),
+    };
+    let mut model = Toy {
+        skip: 1,
+        health: trusted,
+        observed: Vec::new(),
+    };
+    let mut plans = Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    );
+    let mut a = agent(&cfg());
+    for _ in 0..10 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    // Trusted and a preference learnt, but the line is gone (an exploration segment).
+    let floor = [0.85f32; 96];
+    for _ in 0..40 {
+        let d = a
+            .step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        assert_ne!(
+            d.driver,
+            Driver::ActiveInference,
+            "never taking over off the line"
+        );
+    }
+    let mut k = 0;
+    while !a.driving_by_active_inference() {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        k += 1;
+        assert!(k < 30, "takes over once the line has been found for 0.5 s");
+    }
+    assert_eq!(k, 25);
+    assert_eq!(a.stats.fallbacks, 0);
+}
+
+#[test]
+fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
+    let frame = line_frame(6.0, 0.0);
+    let low_probe = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.2),
+    };
+    let mut model = Toy {
+        skip: 1,
+        health: low_probe,
+        observed: Vec::new(),
+    };
+    let mut plans = Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    );
+    let mut a = agent(&cfg());
+    for _ in 0..30 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        !a.driving_by_active_inference(),
+        "a probe below min_probe is not trusted"
+    );
+    model.health.probe = Some(0.9);
+    a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+        .unwrap();
+    assert!(a.driving_by_active_inference());
+    // A ratio above distrust_ratio for fewer than distrust_after_steps model steps is a swing.
+    model.health.model_over_copy = Some(2.0);
+    for _ in 0..40 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    for _ in 0..20 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        !a.driving_by_active_inference(),
+        "sustained: the rule drives again"
+    );
+    assert_eq!(a.stats.switches_to_reactive, 1);
+}

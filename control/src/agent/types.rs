@@ -1,0 +1,190 @@
+//! What the agent is configured with, what it reads each step and what it reports: its config,
+//! the tick, the model's health, the decision and the counters; plus the stand-ins for a missing
+//! model or planner.
+
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::cost::CostConfig;
+use crate::drive::Wheels;
+use crate::planner::{Outcome, PlannerConfig};
+use crate::worker::{PlanJob, PlanService};
+
+/// Who decided a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Driver {
+    Reactive,
+    /// A random exploration segment while the reactive rule drives.
+    Exploration,
+    ActiveInference,
+    /// The reactive rule after the line was lost under active inference.
+    Fallback,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AgentConfig {
+    /// Drive by active inference once the model is trusted (otherwise only the reactive rule).
+    pub enabled: bool,
+    /// Trust the model once its next-frame error is below `trust_ratio` x copy-last...
+    pub trust_ratio: f64,
+    /// ...after this many model steps since its weights were loaded...
+    pub trust_after_steps: u64,
+    /// ...and its counterfactual probe (rank correlation) is at least this (-1: not needed).
+    pub min_probe: f64,
+    /// Stop trusting it when its error has stayed above `distrust_ratio` x copy-last for
+    /// `distrust_after_steps` model steps (the ratio swings when the car slows down: copying
+    /// the last frame is then nearly right).
+    pub distrust_ratio: f64,
+    pub distrust_after_steps: u64,
+    /// Under active inference, hand over to the reactive fallback when the line has been lost
+    /// this long (no line sensor on and no line in the near half of the camera's view),
+    /// seconds...
+    pub fallback_after_s: f32,
+    /// ...and take over again once the line has been found again for this long (and the middle
+    /// sensor is on it).
+    pub resume_after_s: f32,
+    /// Centred frames needed before the preference is used, and the newest kept.
+    pub preference_frames: usize,
+    pub preference_capacity: usize,
+    /// Seconds only the middle line sensor must have been on before a frame counts as centred.
+    pub preference_steady_s: f32,
+    /// Real time: how long the first step of a segment waits for its plan before it counts as
+    /// late (the previous plan's next segment is used). Lockstep waits up to `lockstep_wait_ms`.
+    pub plan_wait_ms: f64,
+    pub lockstep_wait_ms: f64,
+    pub cost: CostConfig,
+    pub planner: PlannerConfig,
+}
+
+impl Default for AgentConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            trust_ratio: 0.8,
+            trust_after_steps: 25,
+            min_probe: 0.7,
+            distrust_ratio: 1.5,
+            distrust_after_steps: 50,
+            fallback_after_s: 0.5,
+            resume_after_s: 0.5,
+            preference_frames: 300,
+            preference_capacity: 2000,
+            preference_steady_s: 0.0,
+            plan_wait_ms: 2.0,
+            lockstep_wait_ms: 2000.0,
+            cost: CostConfig::default(),
+            planner: PlannerConfig::default(),
+        }
+    }
+}
+
+/// One control step's input.
+#[derive(Debug, Clone, Copy)]
+pub struct Tick<'a> {
+    pub episode: u32,
+    pub frame: &'a [f32],
+    pub line: [bool; 3],
+    /// The command applied during the step that led to this frame.
+    pub applied: Wheels,
+    /// The simulator waits for every command (no deadline to keep).
+    pub lockstep: bool,
+}
+
+/// How far the world model can be trusted.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Health {
+    /// Recent next-frame error over the copy-last-frame error.
+    pub model_over_copy: Option<f64>,
+    /// Model steps since its weights were loaded.
+    pub model_steps: u64,
+    /// Counterfactual probe of the weights in use (rank correlation).
+    pub probe: Option<f64>,
+}
+
+impl Health {
+    /// For a model that is the world itself.
+    pub const PERFECT: Health = Health {
+        model_over_copy: Some(0.0),
+        model_steps: u64::MAX,
+        probe: Some(1.0),
+    };
+}
+
+/// The world model as the agent uses it.
+pub trait AgentModel {
+    type Snapshot;
+    /// Control steps per model step; `None` while there is no model.
+    fn frame_skip(&self) -> Option<usize>;
+    /// One model step with the frame seen and the segment's mean command.
+    fn observe(&mut self, frame: &[f32], action: Wheels) -> anyhow::Result<()>;
+    /// A new episode: forget the past.
+    fn reset(&mut self);
+    /// The state after the latest observation, for a plan to start from.
+    fn snapshot(&mut self) -> anyhow::Result<Self::Snapshot>;
+    fn health(&self) -> Health;
+}
+
+/// No world model yet (the predictor before the first weights): the agent only drives by rule.
+pub struct Blind;
+
+impl AgentModel for Blind {
+    type Snapshot = ();
+    fn frame_skip(&self) -> Option<usize> {
+        None
+    }
+    fn observe(&mut self, _: &[f32], _: Wheels) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn reset(&mut self) {}
+    fn snapshot(&mut self) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn health(&self) -> Health {
+        Health::default()
+    }
+}
+
+/// Plans nothing (goes with [`Blind`]).
+pub struct NoPlans;
+
+impl PlanService<()> for NoPlans {
+    fn submit(&mut self, _: PlanJob<()>) -> anyhow::Result<()> {
+        anyhow::bail!("no world model to plan with")
+    }
+    fn wait(&mut self, _: Duration) -> Option<crate::worker::PlanDone> {
+        None
+    }
+    fn idle(&self) -> bool {
+        true
+    }
+}
+
+/// What the agent decided for one step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decision {
+    pub wheels: Wheels,
+    pub driver: Driver,
+    /// The plan taken up at this step, if any (with its compute time).
+    pub plan: Option<(Outcome, Duration)>,
+}
+
+/// Counters for reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct AgentStats {
+    pub reactive_steps: u64,
+    pub exploration_steps: u64,
+    pub active_inference_steps: u64,
+    pub fallback_steps: u64,
+    /// Switches to active inference, and back to the reactive rule because trust was lost.
+    pub switches_to_active_inference: u64,
+    pub switches_to_reactive: u64,
+    /// Times the line was lost under active inference and the fallback took over.
+    pub fallbacks: u64,
+    pub plans: u64,
+    /// Segments whose plan was not ready in time (the previous plan's next segment drove).
+    pub late_plans: u64,
+    pub plan_errors: u64,
+}

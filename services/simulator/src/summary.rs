@@ -1,0 +1,60 @@
+//! What the simulator reports at exit.
+
+use mtanet_ipc::latency::LatencySummary;
+use serde::{Deserialize, Serialize};
+
+use crate::control_stats::ControlSummary;
+use crate::drive_stats::LateralError;
+use crate::pacing::PaceSummary;
+
+/// What the simulator reports at exit (`--summary FILE.json`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Summary {
+    pub steps: u64,
+    /// Steps driven by a command from the predictor for that very step.
+    pub commands_received: u64,
+    /// Steps where a predictor was connected but its command did not come in time.
+    pub missed_commands: u64,
+    /// Real time: steps whose command missed the deadline (the same count as `missed_commands`;
+    /// in lockstep, where nothing has a deadline, 0).
+    pub deadline_misses: u64,
+    /// Commands that arrived for another step (late answers to earlier steps), dropped.
+    pub stale_commands: u64,
+    /// Non-finite commands rejected by the world.
+    pub rejected_commands: u64,
+    /// Steps driven by the teacher because no predictor was connected.
+    pub teacher_steps: u64,
+    pub replay_chunks_sent: u64,
+    /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
+    pub dead_nodes_cleaned: u64,
+    /// Times the car was lost (or drove the wrong way) and was put back at the start
+    /// (episodes - 1).
+    pub resets: u64,
+    /// Of those, the times it drove the wrong way round.
+    pub wrong_way_resets: u64,
+    /// Observation published -> its command received, as seen by the simulator.
+    pub round_trip: LatencySummary,
+    /// Wall time of one step's work (sensors, publishing, waiting for the command, physics);
+    /// in real time without the wait for the next tick.
+    pub step_time: LatencySummary,
+    /// Real time: how far past its 50 Hz tick each step finished (floor 1 us).
+    pub tick_late: LatencySummary,
+    /// Command published by the predictor -> taken in here (transport and wake-up).
+    pub cmd_to_sim: LatencySummary,
+    /// Real time: how late each step started against its 50 Hz schedule.
+    pub tick_jitter: LatencySummary,
+    /// Steps whose work took longer than the control period (their tick was missed).
+    pub overruns: u64,
+    /// Histograms (upper bound in us, count), for pictures.
+    pub step_time_hist: Vec<[f64; 2]>,
+    pub round_trip_hist: Vec<[f64; 2]>,
+    pub cmd_to_sim_hist: Vec<[f64; 2]>,
+    pub laps: u32,
+    pub lateral_error_m: LateralError,
+    /// Who drove, and how well (per command source).
+    pub control: ControlSummary,
+    /// Lockstep pacing on the trainer's updates.
+    pub pace: PaceSummary,
+    pub sim_seconds: f64,
+    pub wall_seconds: f64,
+}
