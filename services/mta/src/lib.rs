@@ -1,4 +1,5 @@
 //! Library side of the `mta` CLI: what its subcommands share with the system tests.
 
+pub mod notify;
 pub mod stack;
 pub mod supervisor;

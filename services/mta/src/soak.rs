@@ -16,9 +16,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::latency::LatencySummary;
 use mtanet_ipc::stack::StackConfig;
-use mtanet_mta::stack::{
-    bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace, wait_for_alive,
-};
+use mtanet_mta::stack::{bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace};
 use mtanet_mta::supervisor::{Event, Supervisor};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -190,19 +188,10 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         }
         sup.add(spec, a)?;
     }
-    for (k, spec) in stack.process.iter().enumerate() {
+    // Each one ready (READY=1) before the next, as `mta up` starts them.
+    for spec in &stack.process {
         sup.start(&spec.name)?;
-        if wait_for_alive(&ns, k + 1, Duration::from_secs(60))
-            .alive
-            .len()
-            < k + 1
-        {
-            bail!(
-                "{} did not come up; see {}",
-                spec.name,
-                sup.log_path(&spec.binary).display()
-            );
-        }
+        sup.await_ready(&spec.name, Duration::from_secs(60))?;
     }
     let bar = ProgressBar::new(steps).with_style(
         ProgressStyle::with_template("[soak] {msg} {bar:40} {elapsed}/{duration}")

@@ -18,6 +18,7 @@ use anyhow::Context;
 use mtanet_ipc::stack::ProcessSpec;
 use serde::Serialize;
 
+use crate::notify::NotifySocket;
 use crate::stack::bin_dir;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -67,6 +68,7 @@ struct Child {
     backoff: Duration,
     restart_at: Option<Instant>,
     started: Instant,
+    notify: Option<NotifySocket>,
 }
 
 pub struct Supervisor {
@@ -110,6 +112,7 @@ impl Supervisor {
             backoff: Duration::from_secs_f64(spec.restart.backoff_s),
             restart_at: None,
             started: Instant::now(),
+            notify: None,
         });
         Ok(())
     }
@@ -138,6 +141,7 @@ impl Supervisor {
         let combined = Arc::clone(&self.combined);
         let c = &mut self.children[i];
         let path = bin_dir().join(&c.spec.binary);
+        let notify = NotifySocket::bind(&c.spec.name)?;
         let mut cmd = Command::new(&path);
         // Its own process group: a Ctrl-C at the terminal reaches only the supervisor, which
         // stops each process with one signal (a second one makes it exit without clean-up).
@@ -149,6 +153,8 @@ impl Supervisor {
             )
             // The process reports it on the stats topic (`mta status`).
             .env(mtanet_ipc::stats::RESTARTS_ENV, c.restarts.to_string())
+            // Its READY=1 (see `await_ready`); the units get the same from systemd.
+            .env("NOTIFY_SOCKET", notify.path())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
         if let Some(prio) = c.spec.realtime_priority {
@@ -190,11 +196,39 @@ impl Supervisor {
             }
         }));
         c.process = Some(child);
+        c.notify = Some(notify);
         c.state = State::Running;
         c.started = Instant::now();
         c.restart_at = None;
         self.note(&format!("started {name} (pid {pid})"));
         Ok(pid)
+    }
+
+    /// Waits until process `name` (started) says READY=1 on its notification socket: its ports
+    /// are open and its loop is about to run. An error if it exits first or takes `timeout`.
+    pub fn await_ready(&mut self, name: &str, timeout: Duration) -> anyhow::Result<()> {
+        let i = self.index(name)?;
+        let log = self.log_path(&self.children[i].spec.binary);
+        let c = &mut self.children[i];
+        let deadline = Instant::now() + timeout;
+        loop {
+            let sock = c.notify.as_ref().context("not started")?;
+            if sock.ready_within(Duration::from_millis(50))? {
+                return Ok(());
+            }
+            if let Some(s) = c.process.as_mut().and_then(|p| p.try_wait().ok().flatten()) {
+                anyhow::bail!(
+                    "{name} exited ({}) before it was ready; see {}",
+                    describe(s),
+                    log.display()
+                );
+            }
+            anyhow::ensure!(
+                Instant::now() < deadline,
+                "{name} was not ready within {timeout:?}; see {}",
+                log.display()
+            );
+        }
     }
 
     /// Reaps exited processes and restarts failed ones whose back-off is over. Never blocks.

@@ -19,7 +19,6 @@ use mtanet_ipc::{Command, CommandSource, Observation, names};
 use crate::report::{self, RunInfo};
 use crate::runcfg;
 use mtanet_ipc::stack::StackConfig;
-use mtanet_mta::stack::wait_for_alive;
 use mtanet_mta::supervisor::{Event, Supervisor};
 
 #[derive(Debug, clap::Args)]
@@ -149,22 +148,14 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         sup.add(spec, a)?;
         order.push(spec.name.clone());
     }
-    // In order, each one up (its iceoryx2 node alive) before the next: the simulator comes last
-    // and finds its peers connected.
-    for (k, name) in order.iter().enumerate() {
+    // In order, each one ready (READY=1: ports open, loop running) before the next, as the
+    // Type=notify units do: the simulator comes last and its first step finds its peers answering.
+    for name in &order {
         let pid = sup.start(name)?;
         eprintln!("[up] started {name} (pid {pid})");
-        if k + 1 < order.len()
-            && wait_for_alive(&ipc.namespace, k + 1, Duration::from_secs(60))
-                .alive
-                .len()
-                < k + 1
-        {
+        if let Err(e) = sup.await_ready(name, Duration::from_secs(60)) {
             sup.stop_all(Duration::from_secs(20));
-            bail!(
-                "{name} did not come up; see {}",
-                sup.log_path(&stack.process[k].binary).display()
-            );
+            return Err(e);
         }
     }
 

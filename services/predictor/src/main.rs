@@ -35,7 +35,6 @@ fn main() -> anyhow::Result<()> {
     }
     let node = create_node(&ipc, "mta-predictor")?;
     let ports = service::Ports::open(&node)?;
-    systemd::ready("predictor running");
     tracing::info!(namespace = %ipc.namespace, "predictor service started");
     let summary = service::run_with(&ports, &cfg, policy, &shutdown);
     systemd::stopping();

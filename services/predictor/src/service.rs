@@ -104,6 +104,8 @@ pub fn run_with(
     let mut last_log = Instant::now();
     let mut failure: Option<anyhow::Error> = None;
     let loader = Loader::spawn(cfg.planner_nice)?;
+    // Ready only now: a simulator started on READY must find this loop answering its first step.
+    mtanet_ipc::systemd::ready("predictor running");
 
     while !shutdown.requested() && failure.is_none() {
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
