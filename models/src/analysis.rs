@@ -70,7 +70,7 @@ pub fn collect_states(
         let (next, _) = model.f_step(&state, &imgs.select(1, t), &acts.select(1, t))?;
         for (l, ls) in next.layers.iter().enumerate() {
             rs[l].push(ls.r.reshape([n, -1]));
-            hs[l].push(Tensor::cat(&ls.h, 1).reshape([n, -1]));
+            hs[l].push(ls.h.reshape([n, -1]));
         }
         state = next;
     }

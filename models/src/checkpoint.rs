@@ -17,7 +17,9 @@ use std::path::{Path, PathBuf};
 use tch::{Device, Kind, Tensor, nn::VarStore};
 
 /// Bumped whenever the file layout or the meaning of a variable changes.
-pub const SCHEMA_VERSION: u32 = 1;
+/// 2: a layer's generative units stored as one block (`layer{l}.units.{wx,wh,bias}`); 1 had one
+/// convolution per unit (`layer{l}.gu{d}.conv.{weight,bias}`) and is converted on reading.
+pub const SCHEMA_VERSION: u32 = 2;
 const FORMAT: &str = "mtanet-checkpoint";
 /// The `__metadata__` entry holding format, schema version, config, meta and checksum.
 const METADATA_KEY: &str = "mtanet";
@@ -260,7 +262,7 @@ pub(crate) fn decode(format: &str, bytes: &[u8]) -> Result<Checkpoint, Checkpoin
     let found = info["schema_version"]
         .as_u64()
         .ok_or_else(|| not_ours(format!("schema_version {}", info["schema_version"])))?;
-    if found != u64::from(SCHEMA_VERSION) {
+    if found != u64::from(SCHEMA_VERSION) && found != 1 {
         return Err(CheckpointError::Schema {
             found: found as u32,
             expected: SCHEMA_VERSION,
@@ -289,6 +291,13 @@ pub(crate) fn decode(format: &str, bytes: &[u8]) -> Result<Checkpoint, Checkpoin
                 kind: e.to_string(),
             })?;
         tensors.insert(name, t);
+    }
+    if found == 1 {
+        tensors = crate::checkpoint_v1::convert(tensors)?;
+        tracing::info!(
+            format,
+            "read a schema-1 file (one convolution per generative unit) and converted it to schema 2 (one per layer); saving writes schema 2"
+        );
     }
     Ok(Checkpoint {
         config,

@@ -86,7 +86,7 @@ pub fn figure_strip(
         )?;
         preds.push(out.prediction.view([is[1], is[2]]));
         for (l, ls) in next.layers.iter().enumerate() {
-            gu0[l].push(ls.h[0].get(0));
+            gu0[l].push(ls.h.get(0).get(0));
         }
         state = next;
     }

@@ -1,9 +1,13 @@
 //! One MTA-PredNet layer: its generative units, action MLP, Xhat conv and (above layer 0) the
 //! conv that turns the layer below's errors into this layer's target X_l.
+//!
+//! The fast form: the units run as one convolution ([`Units`]) on weights assembled once per
+//! sequence or weights version ([`LayerWeights`]), the action weights of a whole sequence come
+//! from one MLP call, and an imagined step (E_0 = 0) skips what a zero input cannot change.
 
 use crate::config::{ActionWeighting, ModelConfig};
-use crate::convlstm::ConvLstm;
 use crate::state::LayerState;
+use crate::units::Units;
 use tch::{Tensor, nn, nn::Module};
 
 /// Maps a(t) to one weight per generative unit. A trained parameter at `layer{l}/action_mlp`
@@ -62,8 +66,8 @@ impl ActionMlp {
 
 #[derive(Debug)]
 pub struct PredLayer {
-    /// The generative units, at `layer{l}/gu{d}`.
-    pub gus: Vec<ConvLstm>,
+    /// The generative units, at `layer{l}.units`.
+    pub units: Units,
     pub action_mlp: ActionMlp,
     /// R_l -> Xhat_l, at `layer{l}/xhat`.
     pub xhat: nn::Conv2D,
@@ -72,9 +76,22 @@ pub struct PredLayer {
     tau: f64,
     channels: i64,
     a_channels: i64,
+    above: i64,
     size: (i64, i64),
     /// Where the weights live (the VarStore's device): states are made there too.
     device: tch::Device,
+}
+
+/// Weights derived from a layer's parameters for stepping: the units' one convolution and its
+/// column blocks. Derived, not stored: build again after the parameters change.
+#[derive(Debug)]
+pub struct LayerWeights {
+    /// `[G*4C, E + up + G*C, k, k]`.
+    w: Tensor,
+    /// The same without the E columns (a step after an imagined one: E_0 = 0).
+    w_no_e: Tensor,
+    /// X_l when E_{l-1} = 0: maxpool(relu(conv(0))) = relu(bias), `[1, a, 1, 1]`.
+    target_if_below_zero: Option<Tensor>,
 }
 
 impl PredLayer {
@@ -83,9 +100,7 @@ impl PredLayer {
         let k = cfg.kernel;
         let (r, a) = (cfg.channels[l], cfg.a_channels[l]);
         let above = cfg.channels.get(l + 1).copied().unwrap_or(0);
-        let gus = (0..cfg.gus[l])
-            .map(|d| ConvLstm::new(&(&p / format!("gu{d}")), 2 * a + above, r, k))
-            .collect();
+        let units = Units::new(&(&p / "units"), 2 * a + above, r, cfg.gus[l], k);
         let action_mlp = ActionMlp::new(&(&p / "action_mlp"), cfg, cfg.gus[l]);
         let conv = |bias| nn::ConvConfig {
             padding: k / 2,
@@ -96,106 +111,155 @@ impl PredLayer {
         let input =
             (l > 0).then(|| nn::conv2d(&p / "input", 2 * cfg.a_channels[l - 1], a, k, conv(0.0)));
         Self {
-            gus,
+            units,
             action_mlp,
             xhat,
             input,
             tau: cfg.tau[l],
             channels: r,
             a_channels: a,
+            above,
             size: cfg.layer_size(l),
             device: p.device(),
         }
     }
 
+    /// The weights for stepping, from the current parameters (differentiable).
+    pub fn weights(&self) -> LayerWeights {
+        let w = self.units.fused();
+        let e = 2 * self.a_channels;
+        let cols = w.size()[1];
+        LayerWeights {
+            w_no_e: w.narrow(1, e, cols - e).contiguous(),
+            w,
+            target_if_below_zero: self.input.as_ref().and_then(|c| {
+                c.bs.as_ref()
+                    .map(|b| b.relu().view([1, self.a_channels, 1, 1]))
+            }),
+        }
+    }
+
+    /// Number of generative units G.
+    pub fn unit_count(&self) -> i64 {
+        self.units.units
+    }
+
     /// Zero state for batch `b` (PredNet starts from zeros; the t = 0 prediction gets no loss).
     pub fn zero_state(&self, b: i64) -> LayerState {
         let (h, w) = self.size;
-        let z = |c| Tensor::zeros([b, c, h, w], (tch::Kind::Float, self.device));
-        let n = self.gus.len();
+        let z = |s: &[i64]| Tensor::zeros(s, (tch::Kind::Float, self.device));
+        let g = self.units.units;
         LayerState {
-            h: (0..n).map(|_| z(self.channels)).collect(),
-            c: (0..n).map(|_| z(self.channels)).collect(),
-            r: z(self.channels),
-            e: z(2 * self.a_channels),
+            h: z(&[b, g, self.channels, h, w]),
+            c: z(&[b, g, self.channels, h, w]),
+            r: z(&[b, self.channels, h, w]),
+            e: z(&[b, 2 * self.a_channels, h, w]),
         }
     }
 
-    /// Top-down half of a step: every unit's leaky update from E_l(t-1), its own state and the
-    /// upsampled R_{l+1}(t), then R_l(t) weighted by the action. Returns (h, c, R_l(t)).
+    fn up(&self, r: &Tensor) -> Tensor {
+        r.upsample_nearest2d([self.size.0, self.size.1], None, None)
+    }
+
+    /// Top-down half of a step: every unit's leaky update from E_l(t-1) (skipped when
+    /// `e_zero`: it is 0 after an imagined step), its own state and the upsampled R_{l+1}(t),
+    /// then R_l(t) mixed with the action weights `mix` `[B, G]`. Returns (h, c, R_l(t)).
     pub fn top_down(
         &self,
+        lw: &LayerWeights,
         prev: &LayerState,
         above: Option<&Tensor>,
-        action: &Tensor,
-    ) -> (Vec<Tensor>, Vec<Tensor>, Tensor) {
-        let x = match above {
-            Some(r) => Tensor::cat(
-                &[
-                    &prev.e,
-                    &r.upsample_nearest2d([self.size.0, self.size.1], None, None),
-                ],
-                1,
-            ),
-            None => prev.e.shallow_clone(),
-        };
-        let mut hs = Vec::with_capacity(self.gus.len());
-        let mut cs = Vec::with_capacity(self.gus.len());
-        for ((gu, h), c) in self.gus.iter().zip(&prev.h).zip(&prev.c) {
-            let (h_new, c_new) = gu.forward(&x, h, c);
-            hs.push(self.integrate(h, h_new));
-            cs.push(self.integrate(c, c_new));
+        mix: &Tensor,
+        e_zero: bool,
+    ) -> (Tensor, Tensor, Tensor) {
+        let mut parts = Vec::with_capacity(3);
+        if !e_zero {
+            parts.push(prev.e.shallow_clone());
         }
-        let r = self.mix(&hs, action);
-        (hs, cs, r)
+        if let Some(r) = above {
+            parts.push(self.up(r));
+        }
+        parts.push(prev.h.flatten(1, 2));
+        let weight = if e_zero { &lw.w_no_e } else { &lw.w };
+        let gates = self
+            .units
+            .gates(&Tensor::cat(&parts, 1), weight, Some(&self.units.bias));
+        let (h_new, c_new) = self.units.cell(&gates, &prev.c);
+        let h = self.integrate(&prev.h, h_new);
+        let c = self.integrate(&prev.c, c_new);
+        let r = Self::mix(&h, mix);
+        (h, c, r)
     }
 
-    /// [`Self::top_down`] for K candidate actions from a batch-1 state: `above` is R_{l+1}(t) for
-    /// each candidate (`[K, ...]`), or `None` at the top. Only the action-dependent work runs K
-    /// times: the top layer's units do not see a(t) at all (only its weights do), and below it
-    /// only the top-down channels of each unit's convolution differ between candidates.
+    /// [`Self::top_down`] for K candidates from a batch-1 state: `above` is R_{l+1}(t) per
+    /// candidate (`[K, ...]`), or `None` at the top, and `mix` `[K, G]`. Only the
+    /// action-dependent work runs K times: the top layer's units do not see a(t) at all (only
+    /// their mixing does), and below it only the top-down columns of the units' convolution
+    /// differ between candidates (the convolution is linear: conv([fixed, up]) = conv(fixed) +
+    /// conv(up)). h and c come back with batch K, or 1 at the top.
     pub fn top_down_candidates(
         &self,
+        lw: &LayerWeights,
         prev: &LayerState,
         above: Option<&Tensor>,
-        actions: &Tensor,
-    ) -> Tensor {
-        let hs: Vec<Tensor> = self
-            .gus
-            .iter()
-            .zip(&prev.h)
-            .zip(&prev.c)
-            .map(|((gu, h), c)| {
-                let (h_new, _) = match above {
-                    Some(r) => {
-                        let up = r.upsample_nearest2d([self.size.0, self.size.1], None, None);
-                        gu.forward_split(&prev.e, &up, h, c)
-                    }
-                    None => gu.forward(&prev.e, h, c),
-                };
-                self.integrate(h, h_new)
-            })
-            .collect();
-        self.mix(&hs, actions)
+        mix: &Tensor,
+        e_zero: bool,
+    ) -> (Tensor, Tensor, Tensor) {
+        let Some(r) = above else {
+            return self.top_down(lw, prev, None, mix, e_zero);
+        };
+        let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
+        let w = &lw.w;
+        let w_up = w.narrow(1, e, self.above);
+        let w_h = w.narrow(1, e + self.above, gc);
+        let h_flat = prev.h.flatten(1, 2);
+        let bias = Some(&self.units.bias);
+        let shared = if e_zero {
+            self.units.gates(&h_flat, &w_h, bias)
+        } else {
+            let w_fixed = Tensor::cat(&[&w.narrow(1, 0, e), &w_h], 1);
+            self.units
+                .gates(&Tensor::cat(&[&prev.e, &h_flat], 1), &w_fixed, bias)
+        };
+        let gates = self.units.gates(&self.up(r), &w_up, None) + shared;
+        let (h_new, c_new) = self.units.cell(&gates, &prev.c);
+        let h = self.integrate(&prev.h, h_new);
+        let c = self.integrate(&prev.c, c_new);
+        let r = Self::mix(&h, mix);
+        (h, c, r)
     }
 
-    /// Leaky integration with tau: (1 - 1/tau) old + (1/tau) new.
+    /// Leaky integration with tau: (1 - 1/tau) old + (1/tau) new, as one lerp.
     fn integrate(&self, old: &Tensor, new: Tensor) -> Tensor {
         // tau = 1 skips the blend so the plain recurrent update is exact, not just close.
         if self.tau == 1.0 {
             return new;
         }
         // Applied to the whole unit state (h and c), as the reference does: the unit's memory,
-        // not only its output, moves at the layer's timescale.
-        old * (1.0 - 1.0 / self.tau) + new * (1.0 / self.tau)
+        // not only its output, moves at the layer's timescale. old may have batch 1 (broadcast).
+        if old.size()[0] == new.size()[0] {
+            old.lerp(&new, 1.0 / self.tau)
+        } else {
+            old.expand_as(&new).lerp(&new, 1.0 / self.tau)
+        }
     }
 
-    /// R_l = sum_d w_d(a) h_d; h_d may have batch 1 and the actions batch K (broadcast).
-    fn mix(&self, hs: &[Tensor], action: &Tensor) -> Tensor {
-        let w = self.action_mlp.forward(action); // [B, G]
-        let b = w.size()[0];
-        let stacked = Tensor::stack(hs, 1); // [B or 1, G, C, H, W]
-        (stacked * w.view([b, -1, 1, 1, 1])).sum_dim_intlist(1, false, None)
+    /// R_l = sum_d w_d h_d as one matrix product: h `[B or 1, G, C, H, W]`, w `[K, G]` (K = B,
+    /// or any K from a batch-1 h).
+    fn mix(h: &Tensor, w: &Tensor) -> Tensor {
+        let s = h.size();
+        let k = w.size()[0];
+        let out = if s[0] == k {
+            w.unsqueeze(1).bmm(&h.reshape([k, s[1], -1]))
+        } else {
+            w.mm(&h.reshape([s[1], -1]))
+        };
+        out.view([k, s[2], s[3], s[4]])
+    }
+
+    /// The action weights `[N, G]` of actions `[N, A]`.
+    pub fn action_weights(&self, actions: &Tensor) -> Tensor {
+        self.action_mlp.forward(actions)
     }
 
     /// Xhat_l = relu(conv(R_l)).
@@ -203,17 +267,24 @@ impl PredLayer {
         self.xhat.forward(r).relu()
     }
 
-    /// X_l from E_{l-1}: maxpool(relu(conv(E_{l-1}))). Only for l > 0.
-    pub fn target_from_below(&self, e_below: &Tensor) -> Option<Tensor> {
+    /// X_l from E_{l-1}: maxpool(relu(conv(E_{l-1}))), or its constant when E_{l-1} = 0. Only
+    /// for l > 0.
+    pub fn target_from_below(&self, lw: &LayerWeights, e_below: Option<&Tensor>) -> Option<Tensor> {
         let conv = self.input.as_ref()?;
-        Some(
-            conv.forward(e_below)
-                .relu()
-                .max_pool2d([2, 2], [2, 2], [0, 0], [1, 1], false),
-        )
+        match (e_below, &lw.target_if_below_zero) {
+            (None, Some(t)) => Some(t.shallow_clone()),
+            (Some(e), _) => {
+                Some(
+                    conv.forward(e)
+                        .relu()
+                        .max_pool2d([2, 2], [2, 2], [0, 0], [1, 1], false),
+                )
+            }
+            (None, None) => None,
+        }
     }
 
-    /// E_l = [relu(X - Xhat); relu(Xhat - X)].
+    /// E_l = [relu(X - Xhat); relu(Xhat - X)] (X may broadcast).
     pub fn error(x: &Tensor, xhat: &Tensor) -> Tensor {
         let d = x - xhat;
         Tensor::cat(&[d.relu(), d.neg().relu()], 1)
@@ -221,5 +292,9 @@ impl PredLayer {
 
     pub fn tau(&self) -> f64 {
         self.tau
+    }
+
+    pub fn size(&self) -> (i64, i64) {
+        self.size
     }
 }

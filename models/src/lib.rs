@@ -16,20 +16,23 @@
 pub mod adam;
 pub mod analysis;
 pub mod checkpoint;
+mod checkpoint_v1;
 pub mod config;
-pub mod convlstm;
+
 pub mod data;
 pub mod eval;
 pub mod figure;
 pub mod layer;
 pub mod live;
 pub mod model;
+pub mod reference;
 pub mod sequences;
 pub mod state;
 pub mod synth;
 pub mod train;
+pub mod units;
 
 pub use config::{ActionWeighting, ConfigError, ErrorLoss, ModelConfig};
-pub use model::{ModelError, MtaPredNet};
+pub use model::{ModelError, MtaPredNet, StepWeights};
 pub use state::{LayerState, SequenceOutput, State, StepOutput};
 pub use train::{TrainConfig, Trainer};

@@ -8,7 +8,7 @@ use mtanet_control::{AgentModel, Drive, Health, Imagination, Wheels};
 use tch::{Kind, Tensor, nn::VarStore};
 
 use crate::checkpoint::{self, CheckpointError};
-use crate::{ModelConfig, MtaPredNet, State};
+use crate::{ModelConfig, MtaPredNet, State, StepWeights};
 
 /// Exponential moving average.
 #[derive(Debug, Clone, Copy, Default)]
@@ -34,6 +34,8 @@ impl Ema {
 pub struct LiveModel {
     vs: VarStore,
     model: MtaPredNet,
+    /// Derived from the weights once per version, not per step.
+    weights: StepWeights,
     state: State,
     last_frame: Option<Tensor>,
     /// Version of the weights (from the weights topic header).
@@ -59,11 +61,15 @@ fn frame_tensor(cfg: &ModelConfig, frame: &[f32]) -> Tensor {
 impl LiveModel {
     /// Decodes and checks a checkpoint; nothing of a bad one is used.
     pub fn from_bytes(bytes: &[u8], version: u64) -> Result<Self, CheckpointError> {
-        let (vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        let (mut vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        // Inference only: no gradients are kept for these weights.
+        vs.freeze();
+        let weights = tch::no_grad(|| model.weights());
         let state = model.zero_state(1);
         Ok(Self {
             vs,
             model,
+            weights,
             state,
             last_frame: None,
             version,
@@ -81,6 +87,7 @@ impl LiveModel {
         let ck = checkpoint::from_bytes(bytes)?;
         if ck.config == *self.model.config() {
             ck.apply(&mut self.vs, &ck.config)?;
+            self.weights = tch::no_grad(|| self.model.weights());
             self.version = version;
         } else {
             *self = Self::from_bytes(bytes, version)?;
@@ -95,6 +102,7 @@ impl LiveModel {
         if other.config() != self.config() || self.vs.copy(&other.vs).is_err() {
             return false;
         }
+        self.weights = tch::no_grad(|| self.model.weights());
         self.version = other.version;
         true
     }
@@ -122,7 +130,9 @@ impl LiveModel {
         let _guard = tch::no_grad_guard();
         let frame = frame_tensor(self.model.config(), frame);
         let action = Tensor::from_slice(&action).view([1, 2]);
-        let (state, out) = self.model.f_step(&self.state, &frame, &action)?;
+        let (state, out) = self
+            .model
+            .f_step_with(&self.weights, &self.state, &frame, &action)?;
         self.state = state;
         let mse = (&out.prediction - &frame)
             .square()
@@ -195,22 +205,30 @@ impl AgentModel for LiveModel {
 pub struct Imagined {
     vs: VarStore,
     model: MtaPredNet,
+    weights: StepWeights,
     start: Option<State>,
 }
 
 impl Imagined {
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, CheckpointError> {
-        let (vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        let (mut vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        vs.freeze();
+        let weights = tch::no_grad(|| model.weights());
         Ok(Self {
             vs,
             model,
+            weights,
             start: None,
         })
     }
 
     /// [`LiveModel::take_weights`] for the planner's copy.
     pub fn take_weights(&mut self, other: &Imagined) -> bool {
-        other.model.config() == self.model.config() && self.vs.copy(&other.vs).is_ok()
+        if other.model.config() != self.model.config() || self.vs.copy(&other.vs).is_err() {
+            return false;
+        }
+        self.weights = tch::no_grad(|| self.model.weights());
+        true
     }
 
     /// New weights (in place for the same network).
@@ -218,6 +236,7 @@ impl Imagined {
         let ck = checkpoint::from_bytes(bytes)?;
         if ck.config == *self.model.config() {
             ck.apply(&mut self.vs, &ck.config)?;
+            self.weights = tch::no_grad(|| self.model.weights());
         } else {
             *self = Self::from_bytes(bytes)?;
         }
@@ -240,7 +259,7 @@ impl Imagination for Imagined {
     fn start(&mut self, from: State, committed: Wheels) -> anyhow::Result<()> {
         let _guard = tch::no_grad_guard();
         let a = Tensor::from_slice(&committed).view([1, 2]);
-        let (state, _) = self.model.f_imagine_step(&from, &a)?;
+        let (state, _) = self.model.f_imagine_step_with(&self.weights, &from, &a)?;
         self.start = Some(state);
         Ok(())
     }
@@ -258,19 +277,10 @@ impl Imagination for Imagined {
         );
         let flat: Vec<f32> = plans.iter().flatten().flat_map(|d| d.wheels()).collect();
         let actions = Tensor::from_slice(&flat).view([k, h, 2]);
-        let mut state = if start.batch() == k {
-            start.shallow_clone()
-        } else {
-            start.expand(k)
-        };
-        let mut predictions = Vec::with_capacity(h as usize);
-        for s in 0..h {
-            let (next, pred) = self.model.f_imagine_step(&state, &actions.select(1, s))?;
-            predictions.push(pred);
-            state = next;
-        }
+        // All K plans in one batch, the first step's action-independent work done once.
+        let (all, _) = self.model.f_rollout(&self.weights, start, &actions)?;
         // [K, H, 1, rows, cols] -> one row of H frames per plan.
-        let all = Tensor::stack(&predictions, 1).contiguous().view([k, -1]);
+        let all = all.contiguous().view([k, -1]);
         let values = Vec::<f32>::try_from(all.flatten(0, -1))?;
         let per = values.len() / k.max(1) as usize;
         Ok(values.chunks(per.max(1)).map(<[f32]>::to_vec).collect())

@@ -4,7 +4,7 @@
 //! `tch::no_grad_guard()` (or freeze the VarStore) so that state does not drag a growing graph.
 
 use crate::config::{ConfigError, ErrorLoss, ModelConfig};
-use crate::layer::PredLayer;
+use crate::layer::{LayerWeights, PredLayer};
 use crate::state::{LayerState, SequenceOutput, State, StepOutput};
 use tch::{Kind, Tensor, nn};
 
@@ -28,8 +28,16 @@ pub enum ModelError {
     State(String),
 }
 
-/// One layer's new unit states: (h per unit, c per unit).
-type UnitStates = (Vec<Tensor>, Vec<Tensor>);
+/// One layer's new unit states: (h, c), each `[B, G, C, H, W]`.
+type UnitStates = (Tensor, Tensor);
+
+/// Weights derived from the parameters for stepping (see `PredLayer::weights`). Build them once
+/// per sequence, or once per weights version for inference ([`MtaPredNet::weights`]), and
+/// again after the parameters change.
+#[derive(Debug)]
+pub struct StepWeights {
+    layers: Vec<LayerWeights>,
+}
 
 #[derive(Debug)]
 pub struct MtaPredNet {
@@ -63,7 +71,23 @@ impl MtaPredNet {
     pub fn zero_state(&self, batch: i64) -> State {
         State {
             layers: self.layers.iter().map(|l| l.zero_state(batch)).collect(),
+            imagined: false,
         }
+    }
+
+    /// The weights for stepping, from the current parameters.
+    pub fn weights(&self) -> StepWeights {
+        StepWeights {
+            layers: self.layers.iter().map(PredLayer::weights).collect(),
+        }
+    }
+
+    /// The action weights of every layer for actions `[N, A]`: one `[N, G_l]` per layer.
+    fn action_weights(&self, actions: &Tensor) -> Vec<Tensor> {
+        self.layers
+            .iter()
+            .map(|l| l.action_weights(actions))
+            .collect()
     }
 
     /// One step; panics on bad shapes (see [`Self::f_step`]).
@@ -80,11 +104,21 @@ impl MtaPredNet {
         frame: &Tensor,
         action: &Tensor,
     ) -> Result<(State, StepOutput), ModelError> {
+        self.f_step_with(&self.weights(), state, frame, action)
+    }
+
+    /// [`Self::f_step`] with weights built once by [`Self::weights`].
+    pub fn f_step_with(
+        &self,
+        w: &StepWeights,
+        state: &State,
+        frame: &Tensor,
+        action: &Tensor,
+    ) -> Result<(State, StepOutput), ModelError> {
         let b = self.check_state(state)?;
         let frame = self.check_frame(frame, b)?;
         self.check_action(action, b)?;
-        let (tops, rs) = self.top_down(state, action);
-        Ok(self.bottom_up(tops, rs, Some(frame)))
+        Ok(self.step_inner(w, state, Some(frame), &self.action_weights(action)))
     }
 
     /// One step of imagination: predicts X_0(t) under `action` `[B, A]` and takes the prediction
@@ -96,36 +130,108 @@ impl MtaPredNet {
         state: &State,
         action: &Tensor,
     ) -> Result<(State, Tensor), ModelError> {
+        self.f_imagine_step_with(&self.weights(), state, action)
+    }
+
+    /// [`Self::f_imagine_step`] with weights built once by [`Self::weights`].
+    pub fn f_imagine_step_with(
+        &self,
+        w: &StepWeights,
+        state: &State,
+        action: &Tensor,
+    ) -> Result<(State, Tensor), ModelError> {
         let b = self.check_state(state)?;
         self.check_action(action, b)?;
-        let (tops, rs) = self.top_down(state, action);
-        let (state, out) = self.bottom_up(tops, rs, None);
+        let (state, out) = self.step_inner(w, state, None, &self.action_weights(action));
         Ok((state, out.prediction))
     }
 
+    /// Imagines K plans `actions` `[K, H, A]` from `start` (batch 1 or K): Xhat_0 of every
+    /// step, `[K, H, 1, rows, cols]`, and the final states. From batch 1 the first step does the
+    /// action-independent work once (as [`Self::f_predict_candidates`]); the action weights of
+    /// all K x H steps come from one MLP call; every step after the first skips the zero
+    /// E_0 columns and the constant X_1.
+    pub fn f_rollout(
+        &self,
+        w: &StepWeights,
+        start: &State,
+        actions: &Tensor,
+    ) -> Result<(Tensor, State), ModelError> {
+        let b = self.check_state(start)?;
+        let size = actions.size();
+        let (k, h) = match size.as_slice() {
+            [k, h, a] if *a == self.cfg.action_dim && (b == 1 || b == *k) => (*k, *h),
+            _ => {
+                return Err(ModelError::ActionShape {
+                    expected: format!(
+                        "[K, H, {}] with K = {b} or a batch-1 state",
+                        self.cfg.action_dim
+                    ),
+                    got: size,
+                });
+            }
+        };
+        check_kind("actions", actions)?;
+        let mixes = self.action_weights(&actions.reshape([k * h, -1]));
+        let at = |s: i64| -> Vec<Tensor> {
+            mixes
+                .iter()
+                .map(|m| m.view([k, h, -1]).select(1, s))
+                .collect()
+        };
+        let mut state = start.shallow_clone();
+        let mut predictions = Vec::with_capacity(h as usize);
+        for s in 0..h {
+            let mix = at(s);
+            let (next, out) = if s == 0 && b == 1 && k > 1 {
+                let (tops, rs) = self.top_down_candidates(w, &state, &mix);
+                self.bottom_up(w, tops, rs, None)
+            } else {
+                self.step_inner(w, &state, None, &mix)
+            };
+            predictions.push(out.prediction);
+            state = next;
+        }
+        Ok((Tensor::stack(&predictions, 1), state))
+    }
+
+    /// A step from checked inputs: `frame` None imagines (the prediction is taken as seen).
+    fn step_inner(
+        &self,
+        w: &StepWeights,
+        state: &State,
+        frame: Option<Tensor>,
+        mix: &[Tensor],
+    ) -> (State, StepOutput) {
+        let (tops, rs) = self.top_down(w, state, mix);
+        self.bottom_up(w, tops, rs, frame)
+    }
+
     /// Bottom-up half of a step from the top-down results: errors against `frame`, or against
-    /// the prediction itself when `None` (imagination).
+    /// the prediction itself when `None` (imagination: E_0 = 0 and X_1 is a constant).
     fn bottom_up(
         &self,
+        w: &StepWeights,
         tops: Vec<UnitStates>,
         rs: Vec<Tensor>,
         frame: Option<Tensor>,
     ) -> (State, StepOutput) {
+        let imagined = frame.is_none();
         let mut layers = Vec::with_capacity(self.layers.len());
         let mut errors: Vec<Tensor> = Vec::with_capacity(self.layers.len());
-        let mut x = frame;
         let mut prediction = None;
+        let mut x = frame;
         for (l, ((layer, (h, c)), r)) in self.layers.iter().zip(tops).zip(rs).enumerate() {
-            if l > 0 {
-                x = Some(
-                    layer
-                        .target_from_below(&errors[l - 1])
-                        .expect("layers above 0 have an input conv"),
-                );
-            }
             let xhat = layer.predict(&r);
-            let target = x.get_or_insert_with(|| xhat.shallow_clone());
-            let e = PredLayer::error(target, &xhat);
+            let e = if l == 0 && imagined {
+                xhat.zeros_like().repeat([1, 2, 1, 1])
+            } else {
+                if l > 0 {
+                    let below = (!(l == 1 && imagined)).then(|| &errors[l - 1]);
+                    x = layer.target_from_below(&w.layers[l], below);
+                }
+                PredLayer::error(x.as_ref().expect("X_l of an observed step"), &xhat)
+            };
             if l == 0 {
                 prediction = Some(xhat);
             }
@@ -133,17 +239,64 @@ impl MtaPredNet {
             layers.push(LayerState { h, c, r, e });
         }
         let prediction = prediction.expect("at least one layer");
-        (State { layers }, StepOutput { prediction, errors })
+        (
+            State { layers, imagined },
+            StepOutput { prediction, errors },
+        )
     }
 
     /// Top-down pass for every layer: ((h, c) per layer, R per layer), bottom first.
-    fn top_down(&self, state: &State, action: &Tensor) -> (Vec<UnitStates>, Vec<Tensor>) {
+    fn top_down(
+        &self,
+        w: &StepWeights,
+        state: &State,
+        mix: &[Tensor],
+    ) -> (Vec<UnitStates>, Vec<Tensor>) {
         let n = self.layers.len();
         let mut tops = Vec::with_capacity(n);
         let mut rs: Vec<Tensor> = Vec::with_capacity(n);
         for l in (0..n).rev() {
-            let (h, c, r) = self.layers[l].top_down(&state.layers[l], rs.last(), action);
+            let e_zero = l == 0 && state.imagined;
+            let (h, c, r) =
+                self.layers[l].top_down(&w.layers[l], &state.layers[l], rs.last(), &mix[l], e_zero);
             tops.push((h, c));
+            rs.push(r);
+        }
+        tops.reverse();
+        rs.reverse();
+        (tops, rs)
+    }
+
+    /// [`Self::top_down`] for K candidates' action weights from a batch-1 state; the top
+    /// layer's h and c (batch 1: they do not depend on the action) are broadcast to K.
+    fn top_down_candidates(
+        &self,
+        w: &StepWeights,
+        state: &State,
+        mix: &[Tensor],
+    ) -> (Vec<UnitStates>, Vec<Tensor>) {
+        let n = self.layers.len();
+        let k = mix[0].size()[0];
+        let mut tops = Vec::with_capacity(n);
+        let mut rs: Vec<Tensor> = Vec::with_capacity(n);
+        for l in (0..n).rev() {
+            let e_zero = l == 0 && state.imagined;
+            let (h, c, r) = self.layers[l].top_down_candidates(
+                &w.layers[l],
+                &state.layers[l],
+                rs.last(),
+                &mix[l],
+                e_zero,
+            );
+            let wide = |t: Tensor| {
+                let mut s = t.size();
+                if s[0] == k {
+                    return t;
+                }
+                s[0] = k;
+                t.expand(s.as_slice(), false)
+            };
+            tops.push((wide(h), wide(c)));
             rs.push(r);
         }
         tops.reverse();
@@ -171,19 +324,16 @@ impl MtaPredNet {
         let b = self.check_state(state)?;
         let k = actions.size().first().copied().unwrap_or(0);
         self.check_action(actions, k)?;
-        if b == k {
-            let (_, rs) = self.top_down(state, actions);
-            return Ok(self.layers[0].predict(&rs[0]));
-        }
-        if b != 1 {
+        let w = self.weights();
+        let mix = self.action_weights(actions);
+        let (_, rs) = if b == k {
+            self.top_down(&w, state, &mix)
+        } else if b == 1 {
+            self.top_down_candidates(&w, state, &mix)
+        } else {
             return Err(ModelError::Batch { state: b, input: k });
-        }
-        let mut r: Option<Tensor> = None;
-        for (layer, ls) in self.layers.iter().zip(&state.layers).rev() {
-            r = Some(layer.top_down_candidates(ls, r.as_ref(), actions));
-        }
-        let r0 = r.expect("at least one layer");
-        Ok(self.layers[0].predict(&r0))
+        };
+        Ok(self.layers[0].predict(&rs[0]))
     }
 
     /// Runs a whole batch of sequences from the zero state (training, evaluation).
@@ -232,51 +382,67 @@ impl MtaPredNet {
             let expected = format!("[{b}, {t}, {}]", self.cfg.action_dim);
             return Err(ModelError::ActionShape { expected, got: asz });
         }
+        self.check_state(state)?;
+        if state.batch() != b {
+            return Err(ModelError::Batch {
+                state: state.batch(),
+                input: b,
+            });
+        }
+        check_kind("frames", &frames)?;
+        check_kind("actions", actions)?;
+        // Once per sequence: the units' fused weights and every step's action weights.
+        let w = self.weights();
+        let mixes: Vec<Tensor> = self
+            .action_weights(&actions.reshape([b * t, -1]))
+            .into_iter()
+            .map(|m| m.view([b, t, -1]))
+            .collect();
         let mut state = state.shallow_clone();
         let mut predictions = Vec::with_capacity(t as usize);
-        let mut layer_errors = Vec::with_capacity(t as usize);
+        let mut errors: Vec<Vec<Tensor>> = (0..self.layers.len()).map(|_| Vec::new()).collect();
         for i in 0..t {
+            let mix: Vec<Tensor> = mixes.iter().map(|m| m.select(1, i)).collect();
+            let frame = frames.select(1, i);
             let (next, out) = if i < observed {
-                self.f_step(&state, &frames.select(1, i), &actions.select(1, i))?
+                self.step_inner(&w, &state, Some(frame), &mix)
             } else {
-                let (next, prediction) = self.f_imagine_step(&state, &actions.select(1, i))?;
+                let (next, out) = self.step_inner(&w, &state, None, &mix);
                 // The loss still compares the prediction with what really came.
-                let out = self.score(&prediction, &frames.select(1, i), &next)?;
-                (next, out)
+                (next, self.score(&out.prediction, &frame, &out.errors))
             };
             predictions.push(out.prediction);
-            let reduced: Vec<Tensor> = out.errors.iter().map(|e| self.reduce_error(e)).collect();
-            layer_errors.push(Tensor::stack(&reduced, 1)); // [B, L]
+            for (l, e) in out.errors.into_iter().enumerate() {
+                errors[l].push(e);
+            }
             state = next;
         }
+        // One reduction per layer over all steps: [B, T, ...] -> [B, T].
+        let reduced: Vec<Tensor> = errors
+            .iter()
+            .map(|es| self.reduce_error(&Tensor::stack(es, 1)))
+            .collect();
         Ok(SequenceOutput {
             predictions: Tensor::stack(&predictions, 1),
-            layer_errors: Tensor::stack(&layer_errors, 1),
+            layer_errors: Tensor::stack(&reduced, 2),
             state,
         })
     }
 
     /// The errors an imagined step would have had against the real frame: layer 0 only (upper
     /// layers' targets come from errors the imagination never saw); the other layers score 0.
-    fn score(
-        &self,
-        prediction: &Tensor,
-        frame: &Tensor,
-        next: &State,
-    ) -> Result<StepOutput, ModelError> {
-        let b = prediction.size()[0];
-        let frame = self.check_frame(frame, b)?;
-        let mut errors = vec![PredLayer::error(&frame, prediction)];
-        errors.extend(next.layers.iter().skip(1).map(|l| l.e.zeros_like()));
-        Ok(StepOutput {
+    fn score(&self, prediction: &Tensor, frame: &Tensor, imagined: &[Tensor]) -> StepOutput {
+        let mut errors = vec![PredLayer::error(frame, prediction)];
+        errors.extend(imagined.iter().skip(1).map(Tensor::zeros_like));
+        StepOutput {
             prediction: prediction.shallow_clone(),
             errors,
-        })
+        }
     }
 
-    /// Per-sample loss reduction of one E_l: `[B]`.
+    /// Per-sample, per-step loss reduction of E_l `[B, T, C, H, W]`: `[B, T]`.
     fn reduce_error(&self, e: &Tensor) -> Tensor {
-        let dims: &[i64] = &[1, 2, 3];
+        let dims: &[i64] = &[2, 3, 4];
         match self.cfg.error_loss {
             ErrorLoss::L1 => e.mean_dim(dims, false, Kind::Float),
             // E's two halves are disjoint relus, so sum over channels of E^2 = (X - Xhat)^2 summed
@@ -294,11 +460,12 @@ impl MtaPredNet {
             )));
         }
         for (l, (s, layer)) in state.layers.iter().zip(&self.layers).enumerate() {
-            if s.h.len() != layer.gus.len() || s.c.len() != layer.gus.len() {
+            let g = layer.unit_count();
+            if s.h.dim() != 5 || s.h.size()[1] != g || s.c.size() != s.h.size() {
                 return Err(ModelError::State(format!(
-                    "layer {l}: {} units, network has {}",
-                    s.h.len(),
-                    layer.gus.len()
+                    "layer {l}: h {:?}, c {:?}; the network has {g} units",
+                    s.h.size(),
+                    s.c.size()
                 )));
             }
         }

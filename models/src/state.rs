@@ -5,11 +5,12 @@ use tch::{Device, Tensor};
 /// State of one layer after step t: what step t + 1 needs.
 #[derive(Debug)]
 pub struct LayerState {
-    /// Each generative unit's own h (its R^d_l), `[B, channels_l, H_l, W_l]`. Never shared
-    /// between units (the reference code aliased them, so its units collapsed into one).
-    pub h: Vec<Tensor>,
+    /// Each generative unit's own h (its R^d_l), `[B, G, channels_l, H_l, W_l]` (unit d at
+    /// index d of dim 1). Never shared between units (the reference code aliased them, so its
+    /// units collapsed into one).
+    pub h: Tensor,
     /// Each generative unit's own ConvLSTM cell state, same shape as `h`.
-    pub c: Vec<Tensor>,
+    pub c: Tensor,
     /// R_l(t) = sum_d w_d(a(t)) h_d: the layer's representation (read by analysis, not by step).
     pub r: Tensor,
     /// E_l(t) = [relu(X - Xhat); relu(Xhat - X)], `[B, 2 a_channels_l, H_l, W_l]`.
@@ -20,13 +21,16 @@ pub struct LayerState {
 #[derive(Debug)]
 pub struct State {
     pub layers: Vec<LayerState>,
+    /// The last step took its own prediction as observed, so E_0 = 0: the next step skips
+    /// the convolution columns a zero input cannot change.
+    pub imagined: bool,
 }
 
 impl LayerState {
     fn map(&self, f: &impl Fn(&Tensor) -> Tensor) -> LayerState {
         LayerState {
-            h: self.h.iter().map(f).collect(),
-            c: self.c.iter().map(f).collect(),
+            h: f(&self.h),
+            c: f(&self.c),
             r: f(&self.r),
             e: f(&self.e),
         }
@@ -37,6 +41,7 @@ impl State {
     fn map(&self, f: impl Fn(&Tensor) -> Tensor) -> State {
         State {
             layers: self.layers.iter().map(|l| l.map(&f)).collect(),
+            imagined: self.imagined,
         }
     }
 

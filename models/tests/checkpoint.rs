@@ -86,7 +86,7 @@ fn config_mismatch_names_the_keys() {
         ..small()
     };
     let (mut other, _m) = model(&other_cfg, 2);
-    let before = other.variables()["layer0.gu0.conv.weight"].copy();
+    let before = other.variables()["layer0.units.wx"].copy();
     let err = checkpoint::load_bytes_into(&bytes, &mut other, &other_cfg).unwrap_err();
     let text = err.to_string();
     assert!(
@@ -95,7 +95,7 @@ fn config_mismatch_names_the_keys() {
     );
     assert!(text.contains("gus") && text.contains("tau"), "{text}");
     assert!(
-        other.variables()["layer0.gu0.conv.weight"].equal(&before),
+        other.variables()["layer0.units.wx"].equal(&before),
         "nothing loaded"
     );
 }
@@ -108,7 +108,7 @@ fn tensor_mismatches_are_listed_and_nothing_is_loaded() {
     let mut ck = checkpoint::from_bytes(&bytes).unwrap();
     ck.tensors.remove("layer1.xhat.bias");
     ck.tensors.insert(
-        "layer0.gu0.conv.weight".into(),
+        "layer0.units.wx".into(),
         Tensor::zeros([3, 3], (Kind::Float, Device::Cpu)),
     );
     ck.tensors.insert(
@@ -120,7 +120,7 @@ fn tensor_mismatches_are_listed_and_nothing_is_loaded() {
         Tensor::zeros([1], (Kind::Float, Device::Cpu)),
     );
     let (mut other, _m) = model(&cfg, 2);
-    let before: Vec<Tensor> = ["layer0.gu1.conv.weight", "layer1.gu0.conv.bias"]
+    let before: Vec<Tensor> = ["layer0.units.wh", "layer1.units.bias"]
         .iter()
         .map(|n| other.variables()[*n].copy())
         .collect();
@@ -132,16 +132,13 @@ fn tensor_mismatches_are_listed_and_nothing_is_loaded() {
     assert_eq!(problems.len(), 4, "{text}");
     for needle in [
         "missing `layer1.xhat.bias`",
-        "`layer0.gu0.conv.weight` shape [3, 3]",
+        "`layer0.units.wx` shape [3, 3]",
         "`layer2.xhat.weight` dtype Double",
         "unexpected `layer9.extra`",
     ] {
         assert!(text.contains(needle), "no `{needle}` in:\n{text}");
     }
-    for (n, b) in ["layer0.gu1.conv.weight", "layer1.gu0.conv.bias"]
-        .iter()
-        .zip(&before)
-    {
+    for (n, b) in ["layer0.units.wh", "layer1.units.bias"].iter().zip(&before) {
         assert!(
             other.variables()[*n].equal(b),
             "{n} was loaded from a rejected checkpoint"
@@ -248,4 +245,48 @@ fn another_process_loads_the_file() {
         fingerprint(&vs, &m),
         "the other process loaded different weights or predicts differently"
     );
+}
+
+/// The committed lockstep checkpoint was written with schema 1 (one convolution per unit): it
+/// loads, and each unit's rows of the regrouped block are its old convolution, number for number.
+#[test]
+fn a_schema_1_checkpoint_is_converted_exactly() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/oval_lockstep.safetensors"
+    );
+    let raw: std::collections::HashMap<String, Tensor> = Tensor::read_safetensors(path)
+        .unwrap()
+        .into_iter()
+        .collect();
+    assert!(
+        raw.contains_key("layer0.gu0.conv.weight"),
+        "the file is schema 1"
+    );
+    let ck = checkpoint::load(path).unwrap();
+    let (vs, model) = ck.build().unwrap();
+    let vars = vs.variables();
+    for (l, layer) in model.layers.iter().enumerate() {
+        let rows = 4 * layer.units.hidden;
+        for d in 0..layer.unit_count() {
+            let old = &raw[&format!("layer{l}.gu{d}.conv.weight")];
+            let new = Tensor::cat(
+                &[
+                    vars[&format!("layer{l}.units.wx")].narrow(0, d * rows, rows),
+                    vars[&format!("layer{l}.units.wh")].narrow(0, d * rows, rows),
+                ],
+                1,
+            );
+            assert!(new.equal(old), "layer {l} unit {d}: weights differ");
+            let bias = vars[&format!("layer{l}.units.bias")].narrow(0, d * rows, rows);
+            assert!(
+                bias.equal(&raw[&format!("layer{l}.gu{d}.conv.bias")]),
+                "layer {l} unit {d}: bias"
+            );
+        }
+    }
+    // Saved again, it is schema 2 and reads back the same.
+    let again = checkpoint::to_bytes(&vs, &ck.config, &ck.meta).unwrap();
+    let back = checkpoint::from_bytes(&again).unwrap();
+    assert_eq!(back.tensors.len(), vars.len());
 }

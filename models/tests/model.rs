@@ -50,15 +50,16 @@ fn shapes_follow_the_config() {
         sizes,
         [vec![3, 2, 8, 12], vec![3, 8, 4, 6], vec![3, 12, 2, 3]]
     );
-    assert_eq!(next.layers[2].h[1].size(), [3, 8, 2, 3]);
+    assert_eq!(next.layers[2].h.select(1, 1 as i64).size(), [3, 8, 2, 3]);
     let seq = m.forward_sequence(&Tensor::rand([2, 5, 8, 12], F), &Tensor::rand([2, 5, 2], F));
     assert_eq!(seq.predictions.size(), [2, 5, 1, 8, 12]);
     assert_eq!(seq.layer_errors.size(), [2, 5, 3]);
     // Every variable sits at a stable, named path (checkpoints depend on it).
     let names = vs.variables();
     for n in [
-        "layer0.gu0.conv.weight",
-        "layer0.gu1.conv.bias",
+        "layer0.units.wx",
+        "layer0.units.wh",
+        "layer0.units.bias",
         "layer2.action_mlp.fc2.weight",
         "layer1.input.weight",
         "layer2.xhat.bias",
@@ -155,7 +156,7 @@ fn each_gu_keeps_its_own_state() {
     let _g = tch::no_grad_guard();
     let s = warm(&m, 2, 4);
     for (l, layer) in s.layers.iter().enumerate() {
-        let (a, b) = (&layer.h[0], &layer.h[1]);
+        let (a, b) = (&layer.h.select(1, 0 as i64), &layer.h.select(1, 1 as i64));
         let diff = (a - b).abs().max().double_value(&[]);
         assert!(
             diff > 1e-3,
@@ -166,7 +167,10 @@ fn each_gu_keeps_its_own_state() {
             b.data_ptr(),
             "layer {l}: GU states alias one buffer"
         );
-        let cdiff = (&layer.c[0] - &layer.c[1]).abs().max().double_value(&[]);
+        let cdiff = (&layer.c.select(1, 0 as i64) - &layer.c.select(1, 1 as i64))
+            .abs()
+            .max()
+            .double_value(&[]);
         assert!(cdiff > 1e-3, "layer {l}: cell states collapsed");
     }
 }
@@ -182,7 +186,13 @@ fn manual_unit(m: &MtaPredNet, prev: &State, next: &State, l: usize, d: usize) -
         }
         None => p.e.shallow_clone(),
     };
-    layer.gus[d].forward(&x, &p.h[d], &p.c[d])
+    mtanet_models::reference::unit(
+        layer,
+        d as i64,
+        &x,
+        &p.h.select(1, d as i64),
+        &p.c.select(1, d as i64),
+    )
 }
 
 #[test]
@@ -198,12 +208,14 @@ fn tau_one_is_the_plain_recurrent_update_and_tau_leaks() {
     for l in 0..3 {
         for d in 0..2 {
             let (h, c) = manual_unit(&plain, &prev, &next, l, d);
+            // The fused convolution sums in another order: equal to float rounding.
+            let off = |a: &Tensor, b: Tensor| (a - b).abs().max().double_value(&[]);
             assert!(
-                h.equal(&next.layers[l].h[d]),
+                off(&h, next.layers[l].h.select(1, d as i64)) < 1e-6,
                 "tau = 1, layer {l} GU {d}: h is not the ConvLSTM's"
             );
             assert!(
-                c.equal(&next.layers[l].c[d]),
+                off(&c, next.layers[l].c.select(1, d as i64)) < 1e-6,
                 "tau = 1, layer {l} GU {d}: c is not the ConvLSTM's"
             );
         }
@@ -217,13 +229,13 @@ fn tau_one_is_the_plain_recurrent_update_and_tau_leaks() {
     );
     for (l, tau) in [(1usize, 1.3f64), (2, 2.0)] {
         let (h, c) = manual_unit(&leaky, &prev, &next, l, 0);
-        let want_h = &prev.layers[l].h[0] * (1.0 - 1.0 / tau) + h * (1.0 / tau);
-        let want_c = &prev.layers[l].c[0] * (1.0 - 1.0 / tau) + c * (1.0 / tau);
-        let dh = (want_h - &next.layers[l].h[0])
+        let want_h = &prev.layers[l].h.select(1, 0 as i64) * (1.0 - 1.0 / tau) + h * (1.0 / tau);
+        let want_c = &prev.layers[l].c.select(1, 0 as i64) * (1.0 - 1.0 / tau) + c * (1.0 / tau);
+        let dh = (want_h - &next.layers[l].h.select(1, 0 as i64))
             .abs()
             .max()
             .double_value(&[]);
-        let dc = (want_c - &next.layers[l].c[0])
+        let dc = (want_c - &next.layers[l].c.select(1, 0 as i64))
             .abs()
             .max()
             .double_value(&[]);
@@ -248,8 +260,8 @@ fn r_is_the_action_weighted_sum_of_the_units() {
     for l in 0..3 {
         let w = m.layers[l].action_mlp.forward(&action); // [B, G]
         let ls = &next.layers[l];
-        let want = &ls.h[0] * w.narrow(1, 0, 1).view([2, 1, 1, 1])
-            + &ls.h[1] * w.narrow(1, 1, 1).view([2, 1, 1, 1]);
+        let want = &ls.h.select(1, 0 as i64) * w.narrow(1, 0, 1).view([2, 1, 1, 1])
+            + &ls.h.select(1, 1 as i64) * w.narrow(1, 1, 1).view([2, 1, 1, 1]);
         let diff = (want - &ls.r).abs().max().double_value(&[]);
         assert!(diff < 1e-6, "layer {l}: R is not sum_d w_d h_d ({diff})");
     }
@@ -260,12 +272,20 @@ fn state_expand_detach_and_select() {
     let (_vs, m) = build(&small([1.0, 1.3, 2.0]), 7);
     let s = warm(&m, 1, 2);
     let k = s.expand(5);
-    assert_eq!((k.batch(), k.layers[1].h[0].size()[0]), (5, 5));
+    assert_eq!(
+        (k.batch(), k.layers[1].h.select(1, 0 as i64).size()[0]),
+        (5, 5)
+    );
     assert!(k.layers[0].r.get(4).equal(&s.layers[0].r.get(0)));
     let picked = k.select(&Tensor::from_slice(&[2i64]));
-    assert!(picked.layers[2].c[1].equal(&s.layers[2].c[1]));
     assert!(
-        !s.detach().layers[0].h[0].requires_grad(),
+        picked.layers[2]
+            .c
+            .select(1, 1 as i64)
+            .equal(&s.layers[2].c.select(1, 1 as i64))
+    );
+    assert!(
+        !s.detach().layers[0].h.select(1, 0 as i64).requires_grad(),
         "detach cuts the graph"
     );
     let two = warm(&m, 2, 1).expand(3);
