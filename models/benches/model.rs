@@ -1,16 +1,29 @@
-//! `cargo bench -p mtanet-models`: latency table of the predictor's and trainer's hot paths.
+//! `cargo bench -p mtanet-models`: latency table of the predictor's and trainer's hot paths,
+//! each fast path beside the straightforward form (`reference.rs`, one unit and one candidate
+//! at a time) measured in the same run.
 //!
 //! libtorch runs with one intra-op thread unless MTANET_BENCH_THREADS says otherwise: at 8x12
 //! every op is a few microseconds of dispatch, which threads cannot split, and on the 2 shared
 //! cores two threads collapse 5-50x whenever another process holds a core (docs/measurements.md).
-//! Optional: MTANET_BENCH_CONFIG=file.toml (model keys) to bench another size.
+//! Optional: MTANET_BENCH_CONFIG=file.toml (model keys) to bench another size in place of the
+//! default network; MTANET_BENCH_QUICK=1 for a short run.
 
 use hdrhistogram::Histogram;
-use mtanet_models::{ModelConfig, MtaPredNet, TrainConfig, Trainer};
+use mtanet_models::{ModelConfig, MtaPredNet, TrainConfig, Trainer, reference};
 use std::time::Instant;
 use tch::{Device, Kind, Tensor, nn};
 
-fn measure(name: &str, iters: usize, mut f: impl FnMut()) {
+const F: (Kind, Device) = (Kind::Float, Device::Cpu);
+
+/// p50, p99, p99.9, max in ms.
+struct Row([f64; 4], usize);
+
+fn measure(iters: usize, mut f: impl FnMut()) -> Row {
+    let iters = if std::env::var_os("MTANET_BENCH_QUICK").is_some() {
+        (iters / 10).max(5)
+    } else {
+        iters
+    };
     for _ in 0..iters / 10 + 3 {
         f();
     }
@@ -21,12 +34,114 @@ fn measure(name: &str, iters: usize, mut f: impl FnMut()) {
         h.record(t.elapsed().as_micros() as u64).expect("record");
     }
     let ms = |us: u64| us as f64 / 1000.0;
+    Row(
+        [
+            ms(h.value_at_quantile(0.5)),
+            ms(h.value_at_quantile(0.99)),
+            ms(h.value_at_quantile(0.999)),
+            ms(h.max()),
+        ],
+        iters,
+    )
+}
+
+fn print(name: &str, fast: &Row, baseline: Option<&Row>) {
+    let [p50, p99, p999, max] = fast.0;
+    let (base, ratio) = baseline.map_or((String::from("-"), String::from("-")), |b| {
+        (format!("{:.3}", b.0[0]), format!("{:.1}x", b.0[0] / p50))
+    });
     println!(
-        "| {name:<44} | {:>9.3} | {:>9.3} | {:>9.3} | {:>9.3} | {iters:>6} |",
-        ms(h.value_at_quantile(0.5)),
-        ms(h.value_at_quantile(0.99)),
-        ms(h.value_at_quantile(0.999)),
-        ms(h.max()),
+        "| {name:<40} | {p50:>8.3} | {p99:>8.3} | {p999:>8.3} | {max:>8.3} | {:>5} | {base:>9} | {ratio:>7} |",
+        fast.1
+    );
+}
+
+fn params(vs: &nn::VarStore) -> i64 {
+    vs.trainable_variables()
+        .iter()
+        .map(|t| t.numel() as i64)
+        .sum()
+}
+
+fn peak_rss_mib() -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn inference(cfg: &ModelConfig) {
+    let _g = tch::no_grad_guard();
+    let mut vs = nn::VarStore::new(Device::Cpu);
+    let model = MtaPredNet::new(&vs.root(), cfg);
+    vs.freeze();
+    let w = model.weights();
+    let (h, wd, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
+    let frame = Tensor::rand([1, 1, h, wd], F);
+    let action = Tensor::rand([1, a], F) * 8.0;
+    let mut state = model.zero_state(1);
+    for _ in 0..5 {
+        state = model.f_step_with(&w, &state, &frame, &action).unwrap().0;
+    }
+    let mut s = state.shallow_clone();
+    let fast = measure(3000, || {
+        let (next, out) = model.f_step_with(&w, &s, &frame, &action).unwrap();
+        let _ = out.prediction.double_value(&[0, 0, 0, 0]);
+        s = next;
+    });
+    let mut s = state.shallow_clone();
+    let slow = measure(1000, || {
+        let (next, p) = reference::step(&model, &s, Some(&frame), &action);
+        let _ = p.double_value(&[0, 0, 0, 0]);
+        s = next;
+    });
+    print("step, batch 1", &fast, Some(&slow));
+    for (k, steps, iters) in [(16, 1, 1000), (64, 1, 500), (16, 15, 200), (32, 4, 300)] {
+        let plans = Tensor::rand([k, steps, a], F) * 8.0;
+        let fast = measure(iters, || {
+            let (p, _) = model.f_rollout(&w, &state, &plans).unwrap();
+            let _ = p.double_value(&[0, 0, 0, 0, 0]);
+        });
+        let slow = measure(iters / 4 + 5, || {
+            let mut s = state.expand(k);
+            for i in 0..steps {
+                s = reference::step(&model, &s, None, &plans.select(1, i)).0;
+            }
+            let _ = s.layers[0].r.double_value(&[0, 0, 0, 0]);
+        });
+        let what = if steps == 1 {
+            format!("K = {k} candidates, one step")
+        } else {
+            format!("K = {k} candidates x {steps}-step rollout")
+        };
+        print(&what, &fast, Some(&slow));
+    }
+}
+
+fn training(name: &str, cfg: &ModelConfig) {
+    let train_cfg = TrainConfig::default();
+    let mut trainer = Trainer::new(cfg, &train_cfg);
+    let (b, t) = (train_cfg.batch_size, train_cfg.bptt);
+    let (h, w, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
+    let images = Tensor::rand([b, t, h, w], F);
+    let actions = Tensor::rand([b, t, a], F) * 8.0;
+    let fast = measure(40, || {
+        trainer.update(&images, &actions).expect("update");
+    });
+    // Baseline: the straightforward forward and backward pass alone (no optimiser step).
+    let vs = nn::VarStore::new(Device::Cpu);
+    let model = MtaPredNet::new(&vs.root(), cfg);
+    let frames = images.unsqueeze(2);
+    let slow = measure(10, || {
+        let (_, errs, _) = reference::sequence(&model, &model.zero_state(b), &frames, &actions, t);
+        errs.sum(Kind::Float).backward();
+    });
+    print(
+        &format!("training update {b} x {t}, {name}"),
+        &fast,
+        Some(&slow),
     );
 }
 
@@ -36,87 +151,69 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
     tch::set_num_threads(threads);
-    let cfg = match std::env::var("MTANET_BENCH_CONFIG") {
+    let default = match std::env::var("MTANET_BENCH_CONFIG") {
         Ok(p) => ModelConfig::from_toml(&std::fs::read_to_string(&p).expect("read config"))
             .expect("config"),
         Err(_) => ModelConfig::default(),
     };
+    // The network of the plain PyTorch comparison script: 1/16/32 channels for R and X.
+    let script = ModelConfig {
+        channels: vec![1, 16, 32],
+        a_channels: vec![1, 16, 32],
+        ..Default::default()
+    };
     tch::manual_seed(0);
-    let vs = nn::VarStore::new(Device::Cpu);
-    let model = MtaPredNet::new(&vs.root(), &cfg);
-    let params: i64 = vs
-        .trainable_variables()
-        .iter()
-        .map(|t| t.numel() as i64)
-        .sum();
-    let (h, w, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
-    let opts = (Kind::Float, Device::Cpu);
-    println!(
-        "MTA-PredNet {}x{} layers {:?} channels {:?} a_channels {:?} GUs {:?} tau {:?}: {params} parameters, {threads} libtorch thread(s)",
-        h,
-        w,
-        cfg.layers(),
-        cfg.channels,
-        cfg.a_channels,
-        cfg.gus,
-        cfg.tau
-    );
-    println!(
-        "| {:<44} | {:>9} | {:>9} | {:>9} | {:>9} | {:>6} |",
-        "case", "p50 ms", "p99 ms", "p99.9 ms", "max ms", "iters"
-    );
-    println!(
-        "|{:-<46}|{:->11}|{:->11}|{:->11}|{:->11}|{:->8}|",
-        "", "", "", "", "", ""
-    );
-
-    {
-        let _g = tch::no_grad_guard();
-        let mut state = model.zero_state(1);
-        let frame = Tensor::rand([1, 1, h, w], opts);
-        let action = Tensor::rand([1, a], opts);
-        measure("inference step, batch 1", 2000, || {
-            let (next, out) = model.step(&state, &frame, &action);
-            let _ = out.prediction.double_value(&[0, 0, 0, 0]);
-            state = next;
-        });
-        for k in [16, 64] {
-            let actions = Tensor::rand([k, a], opts);
-            measure(&format!("predict_candidates, K = {k}"), 1000, || {
-                let p = model.predict_candidates(&state, &actions);
-                let _ = p.double_value(&[0, 0, 0, 0]);
-            });
-            measure(&format!("step + predict_candidates K = {k}"), 1000, || {
-                let (next, _) = model.step(&state, &frame, &action);
-                let p = model.predict_candidates(&next, &actions);
-                let _ = p.double_value(&[0, 0, 0, 0]);
-                state = next;
-            });
-        }
+    for (name, cfg) in [("default", &default), ("1/16/32", &script)] {
+        let vs = nn::VarStore::new(Device::Cpu);
+        let _ = MtaPredNet::new(&vs.root(), cfg);
+        println!(
+            "{name} network: {}x{}, channels {:?}, a_channels {:?}, GUs {:?}, tau {:?}: {} parameters",
+            cfg.image_height,
+            cfg.image_width,
+            cfg.channels,
+            cfg.a_channels,
+            cfg.gus,
+            cfg.tau,
+            params(&vs)
+        );
     }
-
-    let train_cfg = TrainConfig::default();
-    let mut trainer = Trainer::new(&cfg, &train_cfg);
-    let (b, t) = (train_cfg.batch_size, train_cfg.bptt);
-    let images = Tensor::rand([b, t, h, w], opts);
-    let actions = Tensor::rand([b, t, a], opts);
-    measure(
-        &format!("training update, batch {b} x {t} steps"),
-        30,
-        || {
-            trainer.update(&images, &actions).expect("update");
-        },
+    println!("{threads} libtorch thread(s); times in ms; ref = the straightforward form, same run");
+    println!(
+        "| {:<40} | {:>8} | {:>8} | {:>8} | {:>8} | {:>5} | {:>9} | {:>7} |",
+        "case (default network unless named)",
+        "p50",
+        "p99",
+        "p99.9",
+        "max",
+        "iters",
+        "ref p50",
+        "speedup"
     );
+    println!(
+        "|{:-<42}|{:->10}|{:->10}|{:->10}|{:->10}|{:->7}|{:->11}|{:->9}|",
+        "", "", "", "", "", "", "", ""
+    );
+    inference(&default);
+    training("default", &default);
+    let rss_default = peak_rss_mib();
+    training("1/16/32", &script);
+    println!(
+        "peak RSS of this process (VmHWM): {rss_default:.0} MiB after the default network's training, {:.0} MiB after the 1/16/32 one's",
+        peak_rss_mib()
+    );
+    let trainer = Trainer::new(&default, &TrainConfig::default());
     let bytes = trainer.checkpoint_bytes(None).expect("bytes");
-    measure(
-        &format!("checkpoint to_bytes ({} KiB)", bytes.len() / 1024),
-        50,
-        || {
-            let _ = trainer.checkpoint_bytes(None).expect("bytes");
-        },
+    let enc = measure(50, || {
+        let _ = trainer.checkpoint_bytes(None).expect("bytes");
+    });
+    print(
+        &format!("checkpoint to bytes ({} KiB)", bytes.len() / 1024),
+        &enc,
+        None,
     );
-    measure("checkpoint from_bytes + build", 50, || {
+    let dec = measure(50, || {
         let ck = mtanet_models::checkpoint::from_bytes(&bytes).expect("decode");
         let _ = ck.build().expect("build");
     });
+    print("checkpoint from bytes + build", &dec, None);
 }

@@ -64,6 +64,11 @@ impl ActionMlp {
     }
 }
 
+/// From this batch size on, a step runs the units' h columns as a grouped convolution (exact
+/// work) instead of the one block-diagonal convolution (fewer ops, G x the h work): small
+/// batches are bound by op dispatch, large ones by arithmetic (benches/model.rs).
+const GROUPED_FROM_BATCH: i64 = 4;
+
 #[derive(Debug)]
 pub struct PredLayer {
     /// The generative units, at `layer{l}.units`.
@@ -180,10 +185,32 @@ impl PredLayer {
             parts.push(self.up(r));
         }
         parts.push(prev.h.flatten(1, 2));
-        let weight = if e_zero { &lw.w_no_e } else { &lw.w };
-        let gates = self
-            .units
-            .gates(&Tensor::cat(&parts, 1), weight, Some(&self.units.bias));
+        let gates = if prev.h.size()[0] >= GROUPED_FROM_BATCH {
+            // Compute-bound: the block-diagonal h columns would multiply zeros G - 1 times
+            // in G; a grouped convolution over the units' own h does only the real work.
+            let h = parts.pop().expect("h");
+            let u = &self.units;
+            let wx = if e_zero {
+                u.wx.narrow(1, 2 * self.a_channels, self.above)
+            } else {
+                u.wx.shallow_clone()
+            };
+            let pad = [u.padding, u.padding];
+            let x = if parts.is_empty() {
+                None
+            } else {
+                Some(Tensor::cat(&parts, 1))
+            };
+            let hg = h.conv2d(&u.wh, Some(&u.bias), [1, 1], pad, [1, 1], u.units);
+            match x {
+                Some(x) => x.conv2d(&wx, None::<Tensor>, [1, 1], pad, [1, 1], 1) + hg,
+                None => hg,
+            }
+        } else {
+            let weight = if e_zero { &lw.w_no_e } else { &lw.w };
+            self.units
+                .gates(&Tensor::cat(&parts, 1), weight, Some(&self.units.bias))
+        };
         let (h_new, c_new) = self.units.cell(&gates, &prev.c);
         let h = self.integrate(&prev.h, h_new);
         let c = self.integrate(&prev.c, c_new);

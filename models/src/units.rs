@@ -76,11 +76,13 @@ impl Units {
     pub fn cell(&self, gates: &Tensor, c: &Tensor) -> (Tensor, Tensor) {
         let s = gates.size();
         let g6 = gates.view([s[0], self.units, 4, self.hidden, s[2], s[3]]);
-        // i, f, o squashed in one call over their three blocks.
-        let ifo = g6.narrow(2, 0, 3).sigmoid();
-        let g = g6.select(2, 3).tanh();
-        let c_new = (ifo.select(2, 1) * c).addcmul(&ifo.select(2, 0), &g);
-        let h_new = ifo.select(2, 2) * c_new.tanh();
+        // unbind: one backward node for the four blocks (a select each would scatter into a
+        // zero tensor of the whole size in the backward pass).
+        let parts = g6.unbind(2);
+        let (i, f, o) = (parts[0].sigmoid(), parts[1].sigmoid(), parts[2].sigmoid());
+        let g = parts[3].tanh();
+        let c_new = (f * c).addcmul(&i, &g);
+        let h_new = o * c_new.tanh();
         (h_new, c_new)
     }
 }
