@@ -84,23 +84,23 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
     shape: TopicShape,
 ) -> Result<PubSubFactory<ipc::Service, T, ()>, PortError> {
     let service = service_name(name)?;
-    let shaped = node
-        .service_builder(&service)
-        .publish_subscribe::<T>()
-        .enable_safe_overflow(true)
-        .subscriber_max_buffer_size(shape.buffer.max(shape.history).max(1))
-        .history_size(shape.history)
-        .max_subscribers(shape.max_subscribers)
-        .max_publishers(shape.max_publishers)
-        .open_or_create();
-    match shaped {
-        Ok(f) => Ok(f),
+    let (f, reshaped) = open_shaped_or_as_is(
+        name,
+        || {
+            node.service_builder(&service)
+                .publish_subscribe::<T>()
+                .enable_safe_overflow(true)
+                .subscriber_max_buffer_size(shape.buffer.max(shape.history).max(1))
+                .history_size(shape.history)
+                .max_subscribers(shape.max_subscribers)
+                .max_publishers(shape.max_publishers)
+                .open_or_create()
+        },
         // A service created elsewhere with smaller queues (a Zenoh tunnel that bridged it before
         // this process started creates it with its own sizes): use it as it is and say so; a
         // crash loop would help nobody.
-        Err(e) if sized_otherwise(&e) => {
-            let f = node
-                .service_builder(&service)
+        || {
+            node.service_builder(&service)
                 .publish_subscribe::<T>()
                 .enable_safe_overflow(true)
                 .subscriber_max_buffer_size(1)
@@ -108,27 +108,62 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
                 .max_subscribers(1)
                 .max_publishers(1)
                 .open()
-                .map_err(|e2| PortError::Open {
+        },
+    )?;
+    if let Some(why) = reshaped {
+        let c = f.static_config();
+        tracing::warn!(
+            service = name,
+            wanted = ?shape,
+            buffer = c.subscriber_max_buffer_size(),
+            history = c.history_size(),
+            publishers = c.max_publishers(),
+            subscribers = c.max_subscribers(),
+            "the service exists with other queue sizes than this process asks for ({why}); using them"
+        );
+    }
+    Ok(f)
+}
+
+/// Opens a service with this process's sizes (`shaped`), or, when it exists with other sizes
+/// (`DoesNotSupportRequested...`), as it is (`as_is`; the reason comes back for a warning). A
+/// Zenoh tunnel can remove and re-create the service between the two calls (`as_is` then finds
+/// none: seen in a clean-clone run): both are tried again, a few times, before giving up.
+pub(crate) fn open_shaped_or_as_is<F, E1: Debug, E2: Debug>(
+    name: &str,
+    mut shaped: impl FnMut() -> Result<F, E1>,
+    mut as_is: impl FnMut() -> Result<F, E2>,
+) -> Result<(F, Option<String>), PortError> {
+    const ATTEMPTS: usize = 20;
+    for attempt in 1.. {
+        let e = match shaped() {
+            Ok(f) => return Ok((f, None)),
+            Err(e) if sized_otherwise(&e) => e,
+            Err(e) => {
+                return Err(PortError::Open {
+                    service: name.into(),
+                    detail: format!("{e:?}"),
+                });
+            }
+        };
+        match as_is() {
+            Ok(f) => return Ok((f, Some(format!("{e:?}")))),
+            Err(e2) if attempt < ATTEMPTS && format!("{e2:?}").contains("DoesNotExist") => {
+                tracing::debug!(
+                    service = name,
+                    attempt,
+                    "the service vanished between two opens; again"
+                );
+            }
+            Err(e2) => {
+                return Err(PortError::Open {
                     service: name.into(),
                     detail: format!("{e:?}, and as it is: {e2:?}"),
-                })?;
-            let c = f.static_config();
-            tracing::warn!(
-                service = name,
-                wanted = ?shape,
-                buffer = c.subscriber_max_buffer_size(),
-                history = c.history_size(),
-                publishers = c.max_publishers(),
-                subscribers = c.max_subscribers(),
-                "the service exists with other queue sizes than this process asks for ({e:?}); using them"
-            );
-            Ok(f)
+                });
+            }
         }
-        Err(e) => Err(PortError::Open {
-            service: name.into(),
-            detail: format!("{e:?}"),
-        }),
     }
+    unreachable!("the loop returns")
 }
 
 /// True when opening failed only because the existing service has other (smaller) sizes than

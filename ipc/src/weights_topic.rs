@@ -10,7 +10,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 
-use crate::ports::{PortError, open_event, service_name, sized_otherwise};
+use crate::ports::{PortError, open_event, open_shaped_or_as_is, service_name};
 use crate::{WeightsHeader, names, stamp};
 
 type Factory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
@@ -24,25 +24,25 @@ const INITIAL_MAX_BYTES: usize = 4 << 20;
 
 fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
     let name = service_name(names::WEIGHTS)?;
-    let shaped = node
-        .service_builder(&name)
-        .publish_subscribe::<[u8]>()
-        .user_header::<WeightsHeader>()
-        .enable_safe_overflow(true)
-        .history_size(1)
-        .subscriber_max_buffer_size(1)
-        .subscriber_max_borrowed_samples(1)
-        .max_subscribers(4)
-        // The trainer, plus a Zenoh tunnel's bridge when the trainer is on another host.
-        .max_publishers(2)
-        .open_or_create();
-    match shaped {
-        Ok(f) => Ok(f),
+    let (f, reshaped) = open_shaped_or_as_is(
+        names::WEIGHTS,
+        || {
+            node.service_builder(&name)
+                .publish_subscribe::<[u8]>()
+                .user_header::<WeightsHeader>()
+                .enable_safe_overflow(true)
+                .history_size(1)
+                .subscriber_max_buffer_size(1)
+                .subscriber_max_borrowed_samples(1)
+                .max_subscribers(4)
+                // The trainer, plus a Zenoh tunnel's bridge when the trainer is on another host.
+                .max_publishers(2)
+                .open_or_create()
+        },
         // Created by a Zenoh tunnel with its own sizes (history 0 was seen): take it as it is,
         // as `ports` does; a late predictor then waits for the next publish.
-        Err(e) if sized_otherwise(&e) => {
-            let f = node
-                .service_builder(&name)
+        || {
+            node.service_builder(&name)
                 .publish_subscribe::<[u8]>()
                 .user_header::<WeightsHeader>()
                 .enable_safe_overflow(true)
@@ -52,25 +52,19 @@ fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
                 .max_subscribers(1)
                 .max_publishers(1)
                 .open()
-                .map_err(|e2| PortError::Open {
-                    service: names::WEIGHTS.into(),
-                    detail: format!("{e:?}, and as it is: {e2:?}"),
-                })?;
-            let c = f.static_config();
-            tracing::warn!(
-                service = names::WEIGHTS,
-                history = c.history_size(),
-                publishers = c.max_publishers(),
-                subscribers = c.max_subscribers(),
-                "the service exists with other sizes than this process asks for ({e:?}); using them"
-            );
-            Ok(f)
-        }
-        Err(e) => Err(PortError::Open {
-            service: names::WEIGHTS.into(),
-            detail: format!("{e:?}"),
-        }),
+        },
+    )?;
+    if let Some(why) = reshaped {
+        let c = f.static_config();
+        tracing::warn!(
+            service = names::WEIGHTS,
+            history = c.history_size(),
+            publishers = c.max_publishers(),
+            subscribers = c.max_subscribers(),
+            "the service exists with other sizes than this process asks for ({why}); using them"
+        );
     }
+    Ok(f)
 }
 
 fn err(op: &'static str, e: impl core::fmt::Debug) -> PortError {
