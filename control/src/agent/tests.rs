@@ -357,3 +357,69 @@ fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
     );
     assert_eq!(a.stats.switches_to_reactive, 1);
 }
+
+/// A planner that never answers and records the longest wait asked of it.
+struct Slow {
+    outstanding: bool,
+    longest: Duration,
+}
+
+impl PlanService<f32> for Slow {
+    fn submit(&mut self, _: PlanJob<f32>) -> anyhow::Result<()> {
+        self.outstanding = true;
+        Ok(())
+    }
+    fn wait(&mut self, timeout: Duration) -> Option<PlanDone> {
+        self.longest = self.longest.max(timeout);
+        None
+    }
+    fn idle(&self) -> bool {
+        !self.outstanding
+    }
+}
+
+#[test]
+fn a_new_episode_waits_for_a_plan_still_out_only_in_lockstep() {
+    let frame = line_frame(6.0, 0.0);
+    let trusted = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.9),
+    };
+    let longest = |lockstep: bool| {
+        let mut model = Toy {
+            skip: 2,
+            health: trusted,
+            observed: Vec::new(),
+        };
+        let mut a = agent(&cfg());
+        let mut plans = Slow {
+            outstanding: false,
+            longest: Duration::ZERO,
+        };
+        for i in 0..60 {
+            let t = Tick {
+                lockstep,
+                episode: u32::from(i >= 40),
+                ..tick(&frame, CENTRED, [8.0, 8.0])
+            };
+            a.step(&t, &mut model, &mut plans).unwrap();
+            if i == 39 {
+                assert!(a.driving_by_active_inference() && plans.outstanding);
+            }
+        }
+        plans.longest
+    };
+    let cfg = cfg();
+    // Real time: never longer than a late plan's wait (blocking held a 50 Hz step 24 ms).
+    let realtime = longest(false);
+    assert!(
+        realtime <= Duration::from_secs_f64(cfg.plan_wait_ms / 1000.0),
+        "{realtime:?}"
+    );
+    // Lockstep waits (its runs must be reproducible).
+    assert_eq!(
+        longest(true),
+        Duration::from_secs_f64(cfg.lockstep_wait_ms / 1000.0)
+    );
+}
