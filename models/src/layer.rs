@@ -93,8 +93,8 @@ pub struct PredLayer {
 pub struct LayerWeights {
     /// `[G*4C, E + up + G*C, k, k]`.
     w: Tensor,
-    /// The same without the E columns (a step after an imagined one: E_0 = 0).
-    w_no_e: Tensor,
+    /// The same without the E columns, at layer 0 only (a step after an imagined one: E_0 = 0).
+    w_no_e: Option<Tensor>,
     /// X_l when E_{l-1} = 0: maxpool(relu(conv(0))) = relu(bias), `[1, a, 1, 1]`.
     target_if_below_zero: Option<Tensor>,
 }
@@ -135,7 +135,10 @@ impl PredLayer {
         let e = 2 * self.a_channels;
         let cols = w.size()[1];
         LayerWeights {
-            w_no_e: w.narrow(1, e, cols - e).contiguous(),
+            w_no_e: self
+                .input
+                .is_none()
+                .then(|| w.narrow(1, e, cols - e).contiguous()),
             w,
             target_if_below_zero: self.input.as_ref().and_then(|c| {
                 c.bs.as_ref()
@@ -207,7 +210,10 @@ impl PredLayer {
                 None => hg,
             }
         } else {
-            let weight = if e_zero { &lw.w_no_e } else { &lw.w };
+            let weight = match (&lw.w_no_e, e_zero) {
+                (Some(w), true) => w,
+                _ => &lw.w,
+            };
             self.units
                 .gates(&Tensor::cat(&parts, 1), weight, Some(&self.units.bias))
         };
