@@ -4,15 +4,16 @@
 # progress line. Ctrl-C (or SIGTERM) stops all three cleanly and writes the run's report.
 #
 #   ./ops/run_local.sh [--track FILE] [--sim-seconds S] [--lockstep] [--out DIR]
-#                      [--config FILE] [--checkpoint FILE [--no-learning]]
+#                      [--config FILE] [--checkpoint FILE [--no-learning]] [--record]
 #
 # Defaults: the oval, until Ctrl-C, real time, runs/<timestamp>/, ops/mtanet.toml. The run
-# folder gets report.json, lap_trace.png, latency.png, figure.png, model.safetensors, each
-# process's log and summary, and the car's trace. `mta up --help` says more.
+# folder gets report.json, lap_trace.png, latency.png, figure.png, learning.png,
+# model_error.png, model.safetensors, learning.jsonl, each process's log and summary, the car's
+# trace and, with --record, recording.mcap. `mta up --help` says more.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
-case "${1:-}" in -h|--help) sed -n '2,11p' "$0"; exit 0 ;; esac
+case "${1:-}" in -h|--help) sed -n '2,12p' "$0"; exit 0 ;; esac
 
 ./ops/setup.sh
 echo "[run] building the services (release; first build ~10 min on 2 cores)"

@@ -25,6 +25,8 @@ pub struct TopicShape {
     pub history: usize,
     pub max_subscribers: usize,
     pub max_publishers: usize,
+    /// The deepest queue a subscriber may ask for ([`Receiver::open_deep`]: a recorder).
+    pub deep_buffer: usize,
 }
 
 impl TopicShape {
@@ -34,6 +36,8 @@ impl TopicShape {
         history: 0,
         max_subscribers: 4,
         max_publishers: 2,
+        // ~0.4 s of a lockstep run at 2,500 steps/s, 20 s of real time (~2 MB for observations).
+        deep_buffer: 1024,
     };
     /// A status topic: the newest message is what counts, and a late subscriber gets it.
     pub const STATUS: Self = Self {
@@ -41,6 +45,7 @@ impl TopicShape {
         history: 1,
         max_subscribers: 4,
         max_publishers: 2,
+        deep_buffer: 4,
     };
     /// A deeper queue for replay chunks, so a trainer busy with an update loses none: 256
     /// chunks are 102 s of realtime driving, or ~1 s of a lockstep soak at ~5000 steps/s (one
@@ -50,6 +55,7 @@ impl TopicShape {
         history: 0,
         max_subscribers: 4,
         max_publishers: 2,
+        deep_buffer: 256,
     };
 }
 
@@ -90,7 +96,7 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
             node.service_builder(&service)
                 .publish_subscribe::<T>()
                 .enable_safe_overflow(true)
-                .subscriber_max_buffer_size(shape.buffer.max(shape.history).max(1))
+                .subscriber_max_buffer_size(shape.buffer.max(shape.history).max(shape.deep_buffer))
                 .history_size(shape.history)
                 .max_subscribers(shape.max_subscribers)
                 .max_publishers(shape.max_publishers)
@@ -286,9 +292,32 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Receiver<T> {
         name: &'static str,
         shape: TopicShape,
     ) -> Result<Self, PortError> {
+        Self::open_with_buffer(node, name, shape, shape.buffer.max(shape.history).max(1))
+    }
+
+    /// A subscriber that may hold up to [`TopicShape::deep_buffer`] unread samples (a recorder, which must
+    /// not lose a step while the disk or the scheduler holds it up), where the topic's own
+    /// subscribers keep their short queues.
+    pub fn open_deep(
+        node: &Node<ipc::Service>,
+        name: &'static str,
+        shape: TopicShape,
+    ) -> Result<Self, PortError> {
+        Self::open_with_buffer(node, name, shape, shape.buffer.max(shape.deep_buffer))
+    }
+
+    fn open_with_buffer(
+        node: &Node<ipc::Service>,
+        name: &'static str,
+        shape: TopicShape,
+        buffer: usize,
+    ) -> Result<Self, PortError> {
         let service = open_pubsub::<T>(node, name, shape)?;
+        // A service opened as it is (see open_pubsub) may allow less.
+        let buffer = buffer.min(service.static_config().subscriber_max_buffer_size());
         let subscriber = service
             .subscriber_builder()
+            .buffer_size(buffer)
             .create()
             .map_err(|e| port_err(name, e))?;
         let listener = open_event(node, name)?

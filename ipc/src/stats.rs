@@ -17,6 +17,7 @@ pub const SHAPE: TopicShape = TopicShape {
     history: 1,
     max_subscribers: 8,
     max_publishers: 8,
+    deep_buffer: 8,
 };
 
 /// Set by the supervisor (`mta up`) in a restarted process's environment.

@@ -4,7 +4,7 @@ use iceoryx2::prelude::ZeroCopySend;
 use crate::ACTION_DIM;
 
 /// The wheel command answering one observation.
-#[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Zeroable, bytemuck::Pod, ZeroCopySend)]
 #[type_name("mtanet::Command/v2")]
 #[repr(C)]
 pub struct Command {

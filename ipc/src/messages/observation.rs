@@ -5,7 +5,7 @@ use crate::{ACTION_DIM, IMAGE_PIXELS};
 
 /// What the simulator sees at one control step. Published every `CONTROL_PERIOD_S` of simulated
 /// time; the image and wheel velocities are the model's input, `truth` is for evaluation only.
-#[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Zeroable, bytemuck::Pod, ZeroCopySend)]
 #[type_name("mtanet::Observation/v2")]
 #[repr(C)]
 pub struct Observation {
@@ -33,7 +33,7 @@ pub struct Observation {
 }
 
 /// Ground truth from the simulator, for evaluation and reports only (never a model input).
-#[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, Zeroable, bytemuck::Pod, ZeroCopySend)]
 #[type_name("mtanet::GroundTruth/v1")]
 #[repr(C)]
 pub struct GroundTruth {

@@ -7,7 +7,7 @@ use crate::{ACTION_DIM, IMAGE_PIXELS, REPLAY_STEPS};
 /// `actions[t]` is the wheel command applied from frame t-1 to frame t (the quantity a planner
 /// chooses, not the measured wheel speed, which lags it). Consecutive chunks of one episode join
 /// into longer sequences. ~7.9 KB, written in place in shared memory by the simulator.
-#[derive(Debug, Clone, Copy, Zeroable, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Zeroable, bytemuck::Pod, ZeroCopySend)]
 #[type_name("mtanet::ReplayChunk/v2")]
 #[repr(C)]
 pub struct ReplayChunk {

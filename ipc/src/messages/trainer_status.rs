@@ -3,7 +3,7 @@ use iceoryx2::prelude::ZeroCopySend;
 
 /// The trainer's progress, after every update (and when it starts): the lockstep simulator
 /// paces itself on `updates` so that learning per simulated second does not depend on the CPU.
-#[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, Zeroable, bytemuck::Pod, ZeroCopySend)]
 #[type_name("mtanet::TrainerStatus/v1")]
 #[repr(C)]
 pub struct TrainerStatus {

@@ -3,7 +3,7 @@ use iceoryx2::prelude::ZeroCopySend;
 
 /// User header of the weights topic, whose payload is a `[u8]` slice holding one checkpoint
 /// (safetensors with config and metadata, exactly the bytes of a checkpoint file).
-#[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, Zeroable, bytemuck::Pod, ZeroCopySend)]
 #[type_name("mtanet::WeightsHeader/v2")]
 #[repr(C)]
 pub struct WeightsHeader {

@@ -4,12 +4,17 @@ mod canvas;
 mod evaluate;
 mod figures;
 mod pingpong;
+mod plot;
+mod record;
+mod recording;
+mod replay;
 mod report;
 mod runcfg;
 mod soak;
 mod status;
 mod synth;
 mod systemd;
+mod top;
 mod train;
 mod up;
 
@@ -36,17 +41,26 @@ enum Cmd {
     Synth(synth::SynthArgs),
     /// Show the nodes and topics of a running stack.
     Status(status::StatusArgs),
+    /// Live terminal view of a running stack (processes, topics, driver, trainer, trends).
+    Top(top::TopArgs),
     /// Soak: the real workload for M minutes (real time or lockstep) against the raw iceoryx2
     /// ping-pong floor; soak.json, soak.png and a table of percentiles.
     Soak(soak::SoakArgs),
     /// The far side of the soak's raw ping-pong (started by `mta soak`).
     #[command(hide = true)]
     PingpongPeer(pingpong::PeerArgs),
+    /// Record the live topics of a running stack into an MCAP file.
+    Record(record::RecordArgs),
+    /// Play a recording's observations (and weights) to a predictor in place of the simulator,
+    /// comparing its commands with the recorded ones.
+    Replay(replay::ReplayArgs),
     /// Run the whole stack here (trainer, predictor, simulator) with a live progress line and a
     /// report in the run folder (what ./ops/run_local.sh runs).
     Up(up::UpArgs),
     /// Write a run folder's report.json and pictures from its summaries and trace.
     Report(report::ReportArgs),
+    /// Draw a run folder's curves as PNGs: learning curve, live model error, step latency.
+    Plot(plot::PlotArgs),
     /// Counterfactual probe of a checkpoint on a track: does it rank commands like the world?
     Probe(evaluate::ProbeArgs),
     /// Drive a track in-process by active inference, through a checkpoint or the MuJoCo oracle.
@@ -62,10 +76,14 @@ fn main() -> anyhow::Result<()> {
         Cmd::Figures(a) => figures::run(a),
         Cmd::Synth(a) => synth::run(a),
         Cmd::Status(a) => status::run(a),
+        Cmd::Top(a) => top::run(a),
         Cmd::Soak(a) => soak::run(a),
         Cmd::PingpongPeer(a) => pingpong::peer(a),
         Cmd::Up(a) => up::run(a),
+        Cmd::Record(a) => record::run(a),
+        Cmd::Replay(a) => replay::run(a),
         Cmd::Report(a) => report::run(a),
+        Cmd::Plot(a) => plot::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),
         Cmd::Systemd(a) => systemd::run(a),

@@ -5,7 +5,8 @@
 //! - `report.json`: who drove and how well, laps, prediction, probe, latencies, trainer, replay;
 //! - `lap_trace.png`: the car's path coloured by who drove, over the track;
 //! - `latency.png`: histograms of the simulator's step and the predictor's compute per step;
-//! - `figure.png`: the model's figure strip on a fresh drive of the run's track.
+//! - `figure.png`: the model's figure strip on a fresh drive of the run's track;
+//! - `learning.png`, `model_error.png`: the learning curve and the live model's error (`mta plot`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -177,17 +178,18 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
     if let Err(e) = lap_trace(dir, &info.track) {
         tracing::warn!("no lap trace picture: {e:#}");
     }
-    let pred_hist = pred
-        .as_ref()
-        .map(|p| p.compute_hist.clone())
-        .unwrap_or_default();
-    latency_picture(
-        &dir.join("latency.png"),
-        &[
-            ("simulator step", &sim.step_time_hist),
-            ("predictor compute", &pred_hist),
-        ],
-    )?;
+    latency_from_summaries(dir)?;
+    for (name, draw) in [
+        (
+            "learning.png",
+            crate::plot::learning as fn(&Path) -> anyhow::Result<bool>,
+        ),
+        ("model_error.png", crate::plot::model_error),
+    ] {
+        if let Err(e) = draw(dir) {
+            tracing::warn!("no {name}: {e:#}");
+        }
+    }
     let model = dir.join("model.safetensors");
     if model.exists()
         && let Err(e) = crate::figures::strip_on_track(&model, &info.track, &dir.join("figure.png"))
@@ -263,6 +265,24 @@ fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
         x += 30 + 8 * s.len() as i64;
     }
     c.write(&dir.join("lap_trace.png"))
+}
+
+/// `latency.png` from the simulator's and the predictor's summaries in `dir`; false without a
+/// simulator summary.
+pub fn latency_from_summaries(dir: &Path) -> anyhow::Result<bool> {
+    let Some(sim) = read_json::<SimulatorSummary>(&dir.join("mta-simulator.json"))? else {
+        return Ok(false);
+    };
+    let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
+    let pred_hist = pred.map(|p| p.compute_hist).unwrap_or_default();
+    latency_picture(
+        &dir.join("latency.png"),
+        &[
+            ("simulator step", &sim.step_time_hist),
+            ("predictor compute", &pred_hist),
+        ],
+    )?;
+    Ok(true)
 }
 
 /// Log-x histograms, one row each.

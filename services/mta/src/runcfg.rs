@@ -7,8 +7,8 @@ use anyhow::{Context, bail};
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::stack::StackConfig;
 
-/// The config the processes get: the user's, with the run folder's checkpoint directory (unless
-/// it names one) and the mode; checked section by section before anything starts.
+/// The config the processes get: the user's, with the run folder's checkpoint directory and
+/// learning log (unless it names its own) and the mode; checked section by section before anything starts.
 pub fn effective_config(
     config: Option<&Path>,
     mode: Option<&str>,
@@ -43,6 +43,13 @@ pub fn effective_config(
             d
         }
     };
+    if !trainer.contains_key("learning_log") {
+        let log = std::path::absolute(out.join("learning.jsonl"))?;
+        trainer.insert(
+            "learning_log".into(),
+            log.to_string_lossy().into_owned().into(),
+        );
+    }
     table.insert("trainer".into(), trainer.into());
     let mut sim = section(&mut table, "simulator")?;
     if let Some(m) = mode {

@@ -63,7 +63,7 @@ fn finite(x: f32) -> Option<f64> {
         .then(|| format!("{x:.6e}").parse().unwrap_or(f64::from(x)))
 }
 
-fn view(s: &ProcessStats) -> ProcessView {
+pub fn view(s: &ProcessStats) -> ProcessView {
     use serde_json::json;
     let mut detail = BTreeMap::new();
     let (x, faults) = (s.laps_or_driver_or_fill, s.faults);

@@ -45,10 +45,20 @@ pub struct UpArgs {
     /// No trainer: the predictor drives with --checkpoint as it is.
     #[arg(long, requires = "checkpoint")]
     no_learning: bool,
+    /// Record the run's topics into `recording.mcap` in the run folder (`mta record`; replay it
+    /// with `mta replay`).
+    #[arg(long)]
+    record: bool,
+    /// With --record: the weights' checkpoint bytes too (~1 MB each), so a replay can hand a
+    /// predictor the same weights at the same steps.
+    #[arg(long, requires = "record")]
+    record_weight_blobs: bool,
     /// iceoryx2 namespace (default: the config's [ipc] namespace).
     #[arg(long)]
     namespace: Option<String>,
 }
+
+const RECORDER: &str = "recorder";
 
 fn default_out() -> PathBuf {
     let now = std::process::Command::new("date")
@@ -111,6 +121,39 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
     let mut order = Vec::new();
+    if args.record {
+        // First, so it hears the first observation, and stopped last, so it hears the last.
+        let spec = mtanet_ipc::stack::ProcessSpec {
+            name: RECORDER.into(),
+            binary: "mta".into(),
+            description: "mtanet recorder".into(),
+            args: vec![],
+            restart: mtanet_ipc::stack::RestartPolicy {
+                on_failure: false,
+                ..Default::default()
+            },
+            watchdog_s: 10,
+            realtime_priority: None,
+        };
+        let mut a: Vec<String> = [
+            "record",
+            "--config",
+            &arg(&config),
+            "--namespace",
+            &ipc.namespace,
+            "--summary",
+            &arg(&out.join("recording.json")),
+            "--out",
+            &arg(&out.join("recording.mcap")),
+        ]
+        .map(String::from)
+        .into();
+        if args.record_weight_blobs {
+            a.push("--weight-blobs".into());
+        }
+        sup.add(&spec, a)?;
+        order.push(spec.name.clone());
+    }
     for spec in &stack.process {
         if args.no_learning && spec.binary == "mta-trainer" {
             continue;
@@ -159,7 +202,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         }
     }
 
-    let outcome = watch(&ipc, &mut sup, &shutdown);
+    let outcome = watch(&ipc, &mut sup, &shutdown, &out.join("progress.csv"));
     if let Some(line) = &outcome.as_ref().err() {
         eprintln!("\n[up] {line:#}");
     }
@@ -202,7 +245,16 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
 
 /// The live progress line, restarting failed processes, until a signal, the simulator's end,
 /// or a process that failed more often than its restart policy allows.
-fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::Result<()> {
+/// Every second a line also goes to `progress_csv` (the live model-vs-copy-last curve that
+/// `mta plot` draws).
+fn watch(
+    ipc: &IpcConfig,
+    sup: &mut Supervisor,
+    shutdown: &Shutdown,
+    progress_csv: &Path,
+) -> anyhow::Result<()> {
+    let mut csv = ProgressCsv::create(progress_csv)?;
+    let mut last_row = Instant::now();
     let node = create_node(ipc, "mta-up")?;
     let obs = Receiver::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP)?;
     let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP)?;
@@ -218,6 +270,10 @@ fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::
         for e in sup.poll()? {
             match e {
                 Event::Done { name } if name == "simulator" => return Ok(()),
+                // A recorder that failed costs the recording, not the run.
+                Event::Done { name } | Event::GaveUp { name, .. } if name == RECORDER => {
+                    eprintln!("\n[up] the recorder stopped; see mta.log (the run goes on)");
+                }
                 Event::Done { name } => bail!("{name} exited on its own"),
                 Event::GaveUp { name, status } => {
                     bail!("{name} failed ({status}) more often than its restart policy allows")
@@ -252,6 +308,11 @@ fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::
         if let Some(c) = cmds.latest()? {
             last_cmd = Some(c);
         }
+        if last_row.elapsed() >= Duration::from_secs(1) {
+            last_row = Instant::now();
+            let laps = episodes_laps.1 + episodes_laps.2;
+            csv.row(last_obs.as_ref(), last_cmd.as_ref(), laps, start.elapsed());
+        }
         if last_print.elapsed() >= Duration::from_secs(if tty { 1 } else { 10 }) {
             last_print = Instant::now();
             let restarts: u32 = sup.restarts().values().sum();
@@ -270,6 +331,53 @@ fn watch(ipc: &IpcConfig, sup: &mut Supervisor, shutdown: &Shutdown) -> anyhow::
             } else {
                 eprintln!("[up] {line}");
             }
+        }
+    }
+}
+
+/// `progress.csv`: `wall_s,step,sim_s,laps,driver,model_over_copy_last,probe,predictor_ms`,
+/// one row a second (empty fields: not known yet). A failed write stops the file, not the run.
+struct ProgressCsv {
+    out: Option<std::io::BufWriter<std::fs::File>>,
+}
+
+impl ProgressCsv {
+    fn create(path: &Path) -> anyhow::Result<Self> {
+        let f =
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let mut out = std::io::BufWriter::new(f);
+        writeln!(
+            out,
+            "wall_s,step,sim_s,laps,driver,model_over_copy_last,probe,predictor_ms"
+        )?;
+        Ok(Self { out: Some(out) })
+    }
+
+    fn row(&mut self, o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) {
+        let (Some(out), Some(o)) = (self.out.as_mut(), o) else {
+            return;
+        };
+        let f = |v: Option<f32>| {
+            v.filter(|v| v.is_finite())
+                .map_or(String::new(), |v| format!("{v:.4}"))
+        };
+        let driver = c
+            .and_then(|c| CommandSource::from_u32(c.source))
+            .map_or("", CommandSource::name);
+        let res = writeln!(
+            out,
+            "{:.1},{},{:.2},{laps},{driver},{},{},{}",
+            wall.as_secs_f64(),
+            o.step,
+            o.step as f64 * mtanet_ipc::CONTROL_PERIOD_S,
+            f(c.map(|c| c.model_error_ratio)),
+            f(c.map(|c| c.probe)),
+            f(c.map(|c| (c.compute_ns as f64 / 1e6) as f32)),
+        )
+        .and_then(|_| out.flush());
+        if let Err(e) = res {
+            tracing::error!("progress.csv stops here: {e}");
+            self.out = None;
         }
     }
 }

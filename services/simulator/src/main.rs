@@ -59,6 +59,10 @@ struct Args {
     /// simulator.pace_updates_per_1000_steps; 0: off).
     #[arg(long)]
     pace: Option<f64>,
+    /// Write the scene's generated MJCF to this file and exit (open it in MuJoCo's own viewer,
+    /// or check it with another MuJoCo version: it also loads in MuJoCo 2.2).
+    #[arg(long, conflicts_with_all = ["teacher_only", "trace"])]
+    write_mjcf: Option<PathBuf>,
     /// Service mode: write the car's path and who drove it (CSV) to this file.
     #[arg(long, conflicts_with = "teacher_only")]
     trace: Option<PathBuf>,
@@ -107,6 +111,13 @@ fn main() -> anyhow::Result<()> {
         .with_context(|| format!("loading the scene for track {}", scene.track.display()))?;
     let mut teacher = Teacher::new(teacher_cfg);
     tracing::info!(track = %scene.track.display(), length_m = world.track().length_m(), "world ready");
+    if let Some(path) = &args.write_mjcf {
+        // Written only after MuJoCo compiled it (World::new): what is on disk loads.
+        std::fs::write(path, world.mjcf())
+            .with_context(|| format!("writing the MJCF to {}", path.display()))?;
+        println!("{}: the scene of {}", path.display(), scene.track.display());
+        return Ok(());
+    }
 
     if args.teacher_only {
         let run = standalone::StandaloneRun {

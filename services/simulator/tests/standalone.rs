@@ -157,3 +157,49 @@ fn bad_inputs_fail_with_the_file_named() {
     let err = failing_run(&["--config".as_ref(), cfg.as_os_str()]);
     assert!(err.contains("bad.toml") && err.contains("mode"), "{err}");
 }
+
+/// `--write-mjcf` writes the scene MuJoCo 3.17 loaded, for the user's own viewer, and the same
+/// file compiles with another MuJoCo (Debian's 2.2.2 `mujoco-compile`, which exits 0 even on
+/// failure: the output file is the verdict).
+#[test]
+fn write_mjcf_writes_a_scene_that_another_mujoco_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = dir.path().join("bends.xml");
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .arg("--write-mjcf")
+        .arg(&xml)
+        .arg("--track")
+        .arg(shipped_track("bends"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&xml).unwrap();
+    let scene = World::new(&SceneConfig::default().with_track(shipped_track("bends"))).unwrap();
+    assert_eq!(
+        text,
+        scene.mjcf(),
+        "the file is the generated scene of that track"
+    );
+    let mjb = dir.path().join("bends.mjb");
+    let c = Command::new("mujoco-compile").arg(&xml).arg(&mjb).output();
+    let c = c.expect("mujoco-compile (Debian's libmujoco-samples; ./ops/setup.sh installs it)");
+    assert!(
+        mjb.is_file(),
+        "MuJoCo 2.2.2: {}",
+        String::from_utf8_lossy(&c.stdout)
+    );
+    // A track that does not exist: a clear error, no file.
+    let bad = dir.path().join("none.xml");
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .arg("--write-mjcf")
+        .arg(&bad)
+        .args(["--track", "no/such/track.csv"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success() && !bad.exists());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/track.csv"));
+}

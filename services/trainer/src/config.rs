@@ -27,6 +27,10 @@ pub struct TrainerConfig {
     pub publish_every_updates: u64,
     /// Keep the latest checkpoint here (atomic writes) and resume from it at start; none: no disk.
     pub checkpoint_dir: Option<PathBuf>,
+    /// Append one JSON line per update here (loss, gradient norm, update time, replay fill,
+    /// chunks lost; `mta plot` draws it); none: no learning curve. `mta up` sets it to the run
+    /// folder's `learning.jsonl`.
+    pub learning_log: Option<PathBuf>,
     /// Scheduling niceness of the trainer process: training yields the CPU to the predictor.
     pub nice: i32,
     /// Seconds of wall clock between progress log lines.
@@ -51,6 +55,7 @@ impl Default for TrainerConfig {
             probe_every_updates: 250,
             publish_every_updates: 50,
             checkpoint_dir: None,
+            learning_log: None,
             nice: 10,
             log_every_s: 5.0,
             torch_threads: 1,

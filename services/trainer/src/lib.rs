@@ -3,6 +3,7 @@
 //! counterfactual probe, and publishes them to the predictor.
 
 pub mod config;
+pub mod curve;
 pub mod learner;
 pub mod probe;
 pub mod replay;

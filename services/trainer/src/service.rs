@@ -15,6 +15,7 @@ use mtanet_ipc::{ReplayChunk, TrainerStatus, names, stamp};
 use serde::{Deserialize, Serialize};
 
 use crate::config::TrainerConfig;
+use crate::curve::{Curve, CurvePoint};
 use crate::learner::Learner;
 use crate::replay::ReplayBuffer;
 
@@ -129,6 +130,7 @@ pub fn run_with(
         min_sequences = cfg.min_sequences,
         "model ready; waiting for replay chunks"
     );
+    let mut curve = cfg.learning_log.as_deref().map(Curve::open).transpose()?;
     let mut update_time = LatencyStats::new();
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
@@ -159,9 +161,26 @@ pub fn run_with(
         waitset.wait_and_process_once_with_timeout(&mut on_event, timeout)?;
         if training && failure.is_none() {
             let t0 = Instant::now();
-            if learner.train_once(&buffer, &ports.weights)?.is_some() {
-                update_time.record_ns(t0.elapsed().as_nanos() as u64);
+            if let Some(u) = learner.train_once(&buffer, &ports.weights)? {
+                let took = t0.elapsed();
+                update_time.record_ns(took.as_nanos() as u64);
                 session += 1;
+                if let Some(c) = curve.as_mut() {
+                    let point = CurvePoint {
+                        step: u.step,
+                        wall_s: c.wall_s(),
+                        loss: u.loss,
+                        grad_norm: u.grad_norm,
+                        clipped: u.clipped,
+                        update_ms: took.as_secs_f64() * 1e3,
+                        replay_sequences: buffer.len(),
+                        chunks_received: buffer.received(),
+                        chunks_lost: buffer.lost(),
+                        steps_received: buffer.steps_received(),
+                        probe: learner.probe().map(|p| p.1),
+                    };
+                    c.record(&point);
+                }
             }
             publish_status(ports, &learner, &buffer, session, true)?;
         } else if ready {
