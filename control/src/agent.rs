@@ -46,6 +46,9 @@ pub struct Agent {
     committed: Wheels,
     /// The rest of the latest plan, for segments whose own plan is late.
     spare: VecDeque<Drive>,
+    /// A takeover in progress: the first plan was submitted this segment while the rule's
+    /// command is held; active inference drives from the next segment if that plan is there.
+    arming: bool,
     lost_ticks: u32,
     /// Steps in a row with the line found (a line sensor on, or the line in the camera's view).
     found_ticks: u32,
@@ -90,6 +93,7 @@ impl Agent {
             segment: 0,
             committed: [0.0; 2],
             spare: VecDeque::new(),
+            arming: false,
             lost_ticks: 0,
             found_ticks: 0,
             distrust_steps: 0,
@@ -201,6 +205,19 @@ impl Agent {
                     self.spare.clear();
                 }
                 Mode::ActiveInference => plan = self.take_plan(t, plans),
+                Mode::Reactive | Mode::Fallback if self.arming => {
+                    // The takeover's first plan: active inference drives only with a fresh plan
+                    // in hand (a cold planner was late in real time, and holding the rule's
+                    // command for the segments after lost the line once in a bend).
+                    self.arming = false;
+                    if let Some(p) = self.fresh_plan(t, plans) {
+                        tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
+                        self.mode = Mode::ActiveInference;
+                        self.stats.switches_to_active_inference += 1;
+                        self.adopt(&p.0);
+                        plan = Some(p);
+                    }
+                }
                 Mode::Reactive | Mode::Fallback => {
                     // Take over only with the car on the line (not in the middle of an
                     // exploration segment or a search).
@@ -211,14 +228,12 @@ impl Agent {
                             // A plan still out from before the fallback: its segment is past.
                             let _ = plans.wait(self.drain_wait(t.lockstep));
                         }
-                        // Hold the rule's command for this segment, so the plan's start is exact.
+                        // Hold the rule's command for this segment, so the plan's start is
+                        // exact, and plan the next one from it.
                         self.committed = self.reactive.act(t.line);
-                        tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
-                        self.mode = Mode::ActiveInference;
-                        self.stats.switches_to_active_inference += 1;
+                        self.arming = true;
                         self.spare.clear();
                         self.defer_submit(Some(Drive::from_wheels(self.committed)));
-                        return Ok(self.decided(self.committed, Driver::ActiveInference, None));
                     }
                 }
             }
@@ -228,6 +243,9 @@ impl Agent {
         }
         Ok(match self.mode {
             Mode::ActiveInference => self.decided(self.committed, Driver::ActiveInference, plan),
+            // Arming: the rule's command held for the segment the first plan starts from.
+            Mode::Fallback if self.arming => self.decided(self.committed, Driver::Fallback, None),
+            Mode::Reactive if self.arming => self.decided(self.committed, Driver::Reactive, None),
             Mode::Fallback => {
                 let w = self.reactive.act(t.line);
                 self.decided(w, Driver::Fallback, None)
@@ -310,7 +328,9 @@ impl Agent {
     fn still_trusted(&self, h: &Health) -> bool {
         self.cfg.enabled
             && self.distrust_steps < self.cfg.distrust_after_steps.max(1)
-            && (self.cfg.min_probe <= -1.0 || h.probe.is_none_or(|p| p >= self.cfg.min_probe))
+            && (self.cfg.min_probe <= -1.0
+                || h.probe
+                    .is_none_or(|p| p >= self.cfg.distrust_probe.min(self.cfg.min_probe)))
     }
 
     /// The plan for the segment starting now: the one submitted a segment ago, or, if it is late
@@ -325,7 +345,8 @@ impl Agent {
         }
     }
 
-    fn take_plan<P, S>(&mut self, t: &Tick, plans: &mut P) -> Option<(Outcome, Duration)>
+    /// The plan submitted a segment ago, if it is done in time (`plan_wait_ms` in real time).
+    fn fresh_plan<P, S>(&mut self, t: &Tick, plans: &mut P) -> Option<(Outcome, Duration)>
     where
         P: PlanService<S>,
     {
@@ -335,23 +356,33 @@ impl Agent {
             self.cfg.plan_wait_ms
         };
         let wanted = self.segment - 1;
-        let mut fresh = None;
-        if let Some(done) = plans.wait(Duration::from_secs_f64(wait_ms.max(0.0) / 1000.0)) {
-            match done.outcome {
-                Ok(o) if done.segment == wanted => fresh = Some((o, done.compute)),
-                Ok(_) => {} // a late plan for a segment already past
-                Err(e) => {
-                    self.stats.plan_errors += 1;
-                    tracing::error!("planning failed: {e:#}");
-                }
+        let done = plans.wait(Duration::from_secs_f64(wait_ms.max(0.0) / 1000.0))?;
+        match done.outcome {
+            Ok(o) if done.segment == wanted => Some((o, done.compute)),
+            Ok(_) => None, // a late plan for a segment already past
+            Err(e) => {
+                self.stats.plan_errors += 1;
+                tracing::error!("planning failed: {e:#}");
+                None
             }
         }
-        match fresh {
-            Some((o, compute)) => {
-                self.stats.plans += 1;
-                self.committed = o.plan[0].wheels();
-                self.spare = o.plan[1..].iter().copied().collect();
-                Some((o, compute))
+    }
+
+    /// Drives the plan's first segment now and keeps the rest for late plans.
+    fn adopt(&mut self, o: &Outcome) {
+        self.stats.plans += 1;
+        self.committed = o.plan[0].wheels();
+        self.spare = o.plan[1..].iter().copied().collect();
+    }
+
+    fn take_plan<P, S>(&mut self, t: &Tick, plans: &mut P) -> Option<(Outcome, Duration)>
+    where
+        P: PlanService<S>,
+    {
+        match self.fresh_plan(t, plans) {
+            Some(p) => {
+                self.adopt(&p.0);
+                Some(p)
             }
             None => {
                 self.stats.late_plans += 1;
@@ -411,6 +442,7 @@ impl Agent {
         self.applied.clear();
         self.ticks_in_segment = 0;
         self.spare.clear();
+        self.arming = false;
         if !plans.idle() {
             // Lockstep waits for it (reproducible runs); real time only takes it if it is done:
             // blocking here held a 50 Hz step for 24 ms once. A plan still out is taken up and

@@ -45,19 +45,41 @@ impl Imagination for Still {
     }
 }
 
-/// A planner that never finishes in time.
-struct Never(bool);
+/// A planner that answers its first job (so active inference can take over) and no other; it
+/// records the longest wait asked of it.
+#[derive(Default)]
+struct FirstOnly {
+    job: Option<u64>,
+    answered: bool,
+    longest: Duration,
+}
 
-impl PlanService<f32> for Never {
-    fn submit(&mut self, _: PlanJob<f32>) -> anyhow::Result<()> {
-        self.0 = true;
+impl PlanService<f32> for FirstOnly {
+    fn submit(&mut self, job: PlanJob<f32>) -> anyhow::Result<()> {
+        self.job = Some(job.segment);
         Ok(())
     }
-    fn wait(&mut self, _: Duration) -> Option<PlanDone> {
-        None
+    fn wait(&mut self, timeout: Duration) -> Option<PlanDone> {
+        self.longest = self.longest.max(timeout);
+        let segment = self.job?;
+        if self.answered {
+            return None;
+        }
+        self.answered = true;
+        self.job = None;
+        let plan = vec![Drive::from_wheels([8.0, 8.0]); 4];
+        Some(PlanDone {
+            segment,
+            outcome: Ok(Outcome {
+                plan,
+                terms: crate::cost::Terms::default(),
+                evaluations: 0,
+            }),
+            compute: Duration::ZERO,
+        })
     }
     fn idle(&self) -> bool {
-        !self.0
+        self.job.is_none()
     }
 }
 
@@ -129,6 +151,17 @@ fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
         model_steps: 10,
         probe: Some(0.9),
     };
+    // Trusted: the rule's command is held for one segment while the first plan is made from it.
+    let mut arming = Vec::new();
+    for _ in 0..3 {
+        let d = a
+            .step(&tick(&frame, CENTRED, applied), &mut model, &mut plans)
+            .unwrap();
+        assert_eq!(d.driver, Driver::Reactive, "arming: no plan in hand yet");
+        arming.push(d.wheels);
+        applied = d.wheels;
+    }
+    assert!(arming.iter().all(|w| *w == arming[0]), "{arming:?}");
     let mut segments: Vec<Vec<Wheels>> = Vec::new();
     for k in 0..12 {
         let d = a
@@ -149,8 +182,8 @@ fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
     }
     assert_eq!(a.stats.switches_to_active_inference, 1);
     assert_eq!(
-        a.stats.plans, 3,
-        "each later segment takes up the plan made a segment ago"
+        a.stats.plans, 4,
+        "each segment takes up the plan made a segment ago"
     );
     // With the line held in view, only the priors decide: straight on, near the preferred speed.
     let d = Drive::from_wheels(segments[2][0]);
@@ -241,7 +274,7 @@ fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
         observed: Vec::new(),
     };
     let mut a = agent(&cfg());
-    let mut never = Never(false);
+    let mut first_only = FirstOnly::default();
     let mut last = [0.0; 2];
     for _ in 0..40 {
         let d = a
@@ -251,7 +284,7 @@ fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
                     ..tick(&frame, CENTRED, last)
                 },
                 &mut model,
-                &mut never,
+                &mut first_only,
             )
             .unwrap();
         last = d.wheels;
@@ -261,8 +294,42 @@ fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
         "planning late is no reason to stop"
     );
     assert!(a.stats.late_plans >= 5, "{:?}", a.stats);
-    assert_eq!(a.stats.plans, 0);
-    assert_eq!(last, [8.0, 8.0], "the command held from the switch");
+    assert_eq!(a.stats.plans, 1, "only the takeover's plan came");
+    assert_eq!(last, [8.0, 8.0], "the last plan's segments, then held");
+}
+
+#[test]
+fn active_inference_takes_over_only_with_a_first_plan_in_hand() {
+    let frame = line_frame(6.0, 0.0);
+    let mut model = Toy {
+        skip: 2,
+        health: Health {
+            model_over_copy: Some(0.3),
+            model_steps: 10,
+            probe: Some(0.9),
+        },
+        observed: Vec::new(),
+    };
+    let mut a = agent(&cfg());
+    // Real time, and the planner never done in time (a cold planner): the rule keeps driving,
+    // trying again each time the planner is free.
+    let mut never = FirstOnly {
+        answered: true,
+        ..Default::default()
+    };
+    for _ in 0..60 {
+        let t = Tick {
+            lockstep: false,
+            ..tick(&frame, CENTRED, [8.0; 2])
+        };
+        let d = a.step(&t, &mut model, &mut never).unwrap();
+        assert_ne!(d.driver, Driver::ActiveInference);
+    }
+    assert_eq!(a.stats.switches_to_active_inference, 0);
+    assert_eq!(
+        a.stats.late_plans, 0,
+        "no plan was due: active inference never drove"
+    );
 }
 
 #[test]
@@ -306,7 +373,10 @@ fn takes_over_only_with_the_car_on_the_line() {
         k += 1;
         assert!(k < 30, "takes over once the line has been found for 0.5 s");
     }
-    assert_eq!(k, 25);
+    assert_eq!(
+        k, 26,
+        "25 steps, then one (a model step here) to make the first plan"
+    );
     assert_eq!(a.stats.fallbacks, 0);
 }
 
@@ -337,8 +407,40 @@ fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
         "a probe below min_probe is not trusted"
     );
     model.health.probe = Some(0.9);
+    // One model step arms the takeover (its first plan), the next drives by it.
+    for _ in 0..2 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    // A probe that dips below min_probe but not below distrust_probe keeps the trust...
+    model.health.probe = Some(0.6);
     a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
         .unwrap();
+    assert!(
+        a.driving_by_active_inference(),
+        "hysteresis: 0.6 is above 0.55"
+    );
+    // ...one below it ends it, and only min_probe brings it back.
+    model.health.probe = Some(0.5);
+    a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+        .unwrap();
+    assert!(!a.driving_by_active_inference(), "below distrust_probe");
+    model.health.probe = Some(0.6);
+    for _ in 0..5 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        !a.driving_by_active_inference(),
+        "0.6 does not win back the trust"
+    );
+    model.health.probe = Some(0.9);
+    // One model step arms the takeover (its first plan), the next drives by it.
+    for _ in 0..2 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
     assert!(a.driving_by_active_inference());
     // A ratio above distrust_ratio for fewer than distrust_after_steps model steps is a swing.
     model.health.model_over_copy = Some(2.0);
@@ -355,27 +457,7 @@ fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
         !a.driving_by_active_inference(),
         "sustained: the rule drives again"
     );
-    assert_eq!(a.stats.switches_to_reactive, 1);
-}
-
-/// A planner that never answers and records the longest wait asked of it.
-struct Slow {
-    outstanding: bool,
-    longest: Duration,
-}
-
-impl PlanService<f32> for Slow {
-    fn submit(&mut self, _: PlanJob<f32>) -> anyhow::Result<()> {
-        self.outstanding = true;
-        Ok(())
-    }
-    fn wait(&mut self, timeout: Duration) -> Option<PlanDone> {
-        self.longest = self.longest.max(timeout);
-        None
-    }
-    fn idle(&self) -> bool {
-        !self.outstanding
-    }
+    assert_eq!(a.stats.switches_to_reactive, 2);
 }
 
 #[test]
@@ -393,10 +475,7 @@ fn a_new_episode_waits_for_a_plan_still_out_only_in_lockstep() {
             observed: Vec::new(),
         };
         let mut a = agent(&cfg());
-        let mut plans = Slow {
-            outstanding: false,
-            longest: Duration::ZERO,
-        };
+        let mut plans = FirstOnly::default();
         for i in 0..60 {
             let t = Tick {
                 lockstep,
@@ -405,7 +484,7 @@ fn a_new_episode_waits_for_a_plan_still_out_only_in_lockstep() {
             };
             a.step(&t, &mut model, &mut plans).unwrap();
             if i == 39 {
-                assert!(a.driving_by_active_inference() && plans.outstanding);
+                assert!(a.driving_by_active_inference() && !plans.idle());
             }
         }
         plans.longest

@@ -66,6 +66,18 @@ impl Gaps {
     }
 }
 
+/// Everything pending on a topic (copied out, so the samples go back to the publisher at once).
+fn drain<T: std::fmt::Debug + Copy + ZeroCopySend>(
+    r: &Option<Receiver<T>>,
+) -> anyhow::Result<Vec<T>> {
+    let mut batch = Vec::new();
+    if let Some(r) = r {
+        r.drain_events()?;
+        r.for_each(|m| batch.push(*m))?;
+    }
+    Ok(batch)
+}
+
 pub fn run(args: RecordArgs) -> anyhow::Result<()> {
     let (_, ipc) = args.common.load()?;
     let shutdown = Shutdown::install()?;
@@ -116,31 +128,16 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
             Duration::from_millis(100),
         )?;
         let mut step = || -> anyhow::Result<()> {
-            if let Some(r) = &obs {
-                r.drain_events()?;
-                let mut batch = Vec::new();
-                r.for_each(|o| batch.push(*o))?;
-                for o in &batch {
-                    obs_gaps.see(o.step);
-                    out.observation(o)?;
-                }
+            for o in drain(&obs)? {
+                obs_gaps.see(o.step);
+                out.observation(&o)?;
             }
-            if let Some(r) = &cmds {
-                r.drain_events()?;
-                let mut batch = Vec::new();
-                r.for_each(|c| batch.push(*c))?;
-                for c in &batch {
-                    cmd_gaps.see(c.step);
-                    out.command(c)?;
-                }
+            for c in drain(&cmds)? {
+                cmd_gaps.see(c.step);
+                out.command(&c)?;
             }
-            if let Some(r) = &replay {
-                r.drain_events()?;
-                let mut batch = Vec::new();
-                r.for_each(|c| batch.push(Box::new(*c)))?;
-                for c in &batch {
-                    out.replay(c)?;
-                }
+            for c in drain(&replay)? {
+                out.replay(&c)?;
             }
             if let Some(r) = &status
                 && let Some(s) = r.latest()?

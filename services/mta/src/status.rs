@@ -49,6 +49,20 @@ pub struct ProcessView {
     pub detail: BTreeMap<&'static str, serde_json::Value>,
 }
 
+impl ProcessView {
+    /// `p50/p99/p99.9/max` in whole microseconds.
+    pub fn latency_text(&self) -> String {
+        let l = |k| self.latency_us.get(k).copied().unwrap_or(f64::NAN);
+        format!(
+            "{:.0}/{:.0}/{:.0}/{:.0}",
+            l("p50"),
+            l("p99"),
+            l("p999"),
+            l("max")
+        )
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct Status {
     pub namespace: String,
@@ -191,14 +205,7 @@ fn print_text(s: &Status) {
         "latency us p50/p99/p99.9/max"
     );
     for (name, p) in &s.processes {
-        let l = |k| p.latency_us.get(k).copied().unwrap_or(f64::NAN);
-        let lat = format!(
-            "{:.0}/{:.0}/{:.0}/{:.0}",
-            l("p50"),
-            l("p99"),
-            l("p999"),
-            l("max")
-        );
+        let lat = p.latency_text();
         let detail: Vec<String> = p.detail.iter().map(|(k, v)| format!("{k} {v}")).collect();
         let silent = if p.age_s > 3.0 {
             format!(" SILENT {:.0} s", p.age_s)

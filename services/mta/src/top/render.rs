@@ -1,141 +1,16 @@
-//! `mta top`: a live terminal view of a running stack (ratatui), refreshed once a second, that
-//! fits an 80x24 terminal over SSH: per process alive / restarts / CPU / RSS / rate / latency;
-//! the topics' rates; who drives, laps, the model's live error against copy-last and the probe;
-//! the trainer's updates, loss and replay fill; sparklines of the trends. It reads what the
-//! processes publish (the stats topic, the same as `mta status`, and the latest observation,
-//! command and trainer status), never their logs.
-//!
-//! `--frames N` prints N frames as plain text instead (no terminal needed: tests, captures).
+//! Drawing one frame of `mta top` (pure: tests render it on ratatui's test backend).
 
-use std::collections::{BTreeMap, VecDeque};
-use std::io::IsTerminal;
-use std::time::{Duration, Instant};
+use std::collections::VecDeque;
 
-use mtanet_ipc::cli::CommonArgs;
-use mtanet_ipc::node::{IpcConfig, create_observer_node};
-use mtanet_ipc::ports::{Receiver, TopicShape};
-use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::{Command, CommandSource, Observation, ProcessStats, TrainerStatus, names, stats};
-use ratatui::Terminal;
+use mtanet_ipc::CommandSource;
 use ratatui::backend::TestBackend;
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph, Row, Sparkline, Table};
 
-use crate::status::{Status, snapshot};
-
-#[derive(Debug, clap::Args)]
-pub struct TopArgs {
-    #[command(flatten)]
-    common: CommonArgs,
-    /// Print this many frames as plain text, one a second, and exit (no terminal needed).
-    #[arg(long)]
-    frames: Option<u32>,
-    /// Size of the plain-text frames.
-    #[arg(long, default_value_t = 80)]
-    width: u16,
-    #[arg(long, default_value_t = 24)]
-    height: u16,
-}
-
-/// Samples kept for the sparklines (one a second).
-const HISTORY: usize = 120;
-
-/// A value and when it was seen, for rates from counters.
-#[derive(Clone, Copy)]
-struct Seen {
-    value: u64,
-    at: Instant,
-}
-
-/// Rate of a counter between two refreshes.
-#[derive(Default)]
-struct Rate {
-    last: Option<Seen>,
-    pub hz: Option<f64>,
-}
-
-impl Rate {
-    fn update(&mut self, value: Option<u64>, now: Instant) {
-        let Some(value) = value else { return };
-        if let Some(l) = self.last {
-            let dt = now.duration_since(l.at).as_secs_f64();
-            if dt > 0.2 {
-                // A restarted process counts from 0 again: no negative rate.
-                self.hz = Some(value.saturating_sub(l.value) as f64 / dt);
-                self.last = Some(Seen { value, at: now });
-            }
-        } else {
-            self.last = Some(Seen { value, at: now });
-        }
-    }
-}
-
-/// Everything one frame shows.
-#[derive(Default)]
-pub struct View {
-    pub status: Option<Status>,
-    pub observation: Option<Observation>,
-    pub command: Option<Command>,
-    pub trainer: Option<TrainerStatus>,
-    /// Topic rates (Hz): observation, command, replay, weights.
-    rates: [Rate; 4],
-    /// Histories for the sparklines.
-    step_p99_us: VecDeque<u64>,
-    predictor_p99_us: VecDeque<u64>,
-    model_ratio_milli: VecDeque<u64>,
-    loss_micro: VecDeque<u64>,
-    started: Option<Instant>,
-}
-
-fn push(h: &mut VecDeque<u64>, v: Option<f64>) {
-    if h.len() == HISTORY {
-        h.pop_front();
-    }
-    h.push_back(v.filter(|v| v.is_finite() && *v >= 0.0).unwrap_or(0.0) as u64);
-}
-
-impl View {
-    /// Takes in one refresh's readings.
-    pub fn update(
-        &mut self,
-        status: Status,
-        observation: Option<Observation>,
-        command: Option<Command>,
-        trainer: Option<TrainerStatus>,
-    ) {
-        let now = Instant::now();
-        self.started.get_or_insert(now);
-        self.observation = observation.or(self.observation);
-        self.command = command.or(self.command);
-        self.trainer = trainer.or(self.trainer);
-        let [obs, cmd, replay, weights] = &mut self.rates;
-        obs.update(observation.map(|o| o.step), now);
-        cmd.update(command.map(|c| c.step), now);
-        replay.update(trainer.map(|t| t.chunks_received), now);
-        weights.update(command.map(|c| c.model_version), now);
-        let p = |role: &str, k: &str| {
-            status
-                .processes
-                .get(role)
-                .and_then(|p| p.latency_us.get(k).copied())
-        };
-        push(&mut self.step_p99_us, p("simulator", "p99"));
-        push(&mut self.predictor_p99_us, p("predictor", "p99"));
-        push(
-            &mut self.model_ratio_milli,
-            self.command.map(|c| f64::from(c.model_error_ratio) * 1e3),
-        );
-        let loss = status
-            .processes
-            .get("trainer")
-            .and_then(|t| t.detail.get("loss"))
-            .and_then(|v| v.as_f64());
-        push(&mut self.loss_micro, loss.map(|l| l * 1e6));
-        self.status = Some(status);
-    }
-}
+use super::view::View;
+use crate::status::Status;
 
 fn num(v: Option<f64>, digits: usize) -> String {
     v.filter(|v| v.is_finite())
@@ -209,14 +84,7 @@ fn processes(f: &mut ratatui::Frame, area: Rect, s: &Status) {
                 .style(Style::default().fg(Color::DarkGray));
         };
         let alive = p.age_s <= 3.0;
-        let l = |k| p.latency_us.get(k).copied().unwrap_or(f64::NAN);
-        let lat = format!(
-            "{:.0}/{:.0}/{:.0}/{:.0}",
-            l("p50"),
-            l("p99"),
-            l("p999"),
-            l("max")
-        );
+        let lat = p.latency_text();
         let row = Row::new([
             role.to_string(),
             p.pid.to_string(),
@@ -405,114 +273,13 @@ pub fn text(backend: &TestBackend) -> String {
     out
 }
 
-/// The topics `mta top` reads, through an observer node (it never cleans dead nodes).
-pub struct Feeds {
-    _node: iceoryx2::prelude::Node<iceoryx2::prelude::ipc::Service>,
-    stats: Receiver<ProcessStats>,
-    obs: Receiver<Observation>,
-    cmds: Receiver<Command>,
-    trainer: Receiver<TrainerStatus>,
-    latest: BTreeMap<String, ProcessStats>,
-    ipc: IpcConfig,
-}
-
-impl Feeds {
-    pub fn open(ipc: &IpcConfig) -> anyhow::Result<Self> {
-        let node = create_observer_node(ipc, &format!("top-{}", std::process::id()))?;
-        Ok(Self {
-            stats: Receiver::open(&node, names::STATS, stats::SHAPE)?,
-            obs: Receiver::open(&node, names::OBSERVATION, TopicShape::STEP)?,
-            cmds: Receiver::open(&node, names::COMMAND, TopicShape::STEP)?,
-            trainer: Receiver::open(&node, names::TRAINER_STATUS, TopicShape::STATUS)?,
-            _node: node,
-            latest: BTreeMap::new(),
-            ipc: ipc.clone(),
-        })
-    }
-
-    /// One refresh: waits up to `wait` for the processes' stats, then takes the newest of each.
-    pub fn refresh(&mut self, view: &mut View, wait: Duration) -> anyhow::Result<()> {
-        let s = snapshot(&self.ipc, &self.stats, &mut self.latest, wait)?;
-        view.update(
-            s,
-            self.obs.latest()?,
-            self.cmds.latest()?,
-            self.trainer.latest()?,
-        );
-        Ok(())
-    }
-}
-
-pub fn run(args: TopArgs) -> anyhow::Result<()> {
-    let (_, ipc) = args.common.load()?;
-    let shutdown = Shutdown::install()?;
-    let mut feeds = Feeds::open(&ipc)?;
-    let mut view = View::default();
-    let frames = match args.frames {
-        Some(n) => Some(n),
-        None if !std::io::stdout().is_terminal() => {
-            tracing::warn!("stdout is not a terminal: printing one text frame (see --frames)");
-            Some(1)
-        }
-        None => None,
-    };
-    if let Some(n) = frames {
-        let mut term = Terminal::new(TestBackend::new(args.width, args.height))?;
-        for i in 0..n {
-            if shutdown.requested() {
-                break;
-            }
-            let t0 = Instant::now();
-            feeds.refresh(&mut view, Duration::from_millis(1500))?;
-            term.draw(|f| render(f, &view))?;
-            print!("{}", text(term.backend()));
-            if i + 1 < n {
-                println!();
-                std::thread::sleep(Duration::from_secs(1).saturating_sub(t0.elapsed()));
-            }
-        }
-        return Ok(());
-    }
-    let mut term = ratatui::init();
-    let res = interactive(&mut term, &mut feeds, &mut view, &shutdown);
-    ratatui::restore();
-    res
-}
-
-fn interactive(
-    term: &mut ratatui::DefaultTerminal,
-    feeds: &mut Feeds,
-    view: &mut View,
-    shutdown: &Shutdown,
-) -> anyhow::Result<()> {
-    use ratatui::crossterm::event::{self, Event, KeyCode, KeyModifiers};
-    let mut next = Instant::now();
-    while !shutdown.requested() {
-        if Instant::now() >= next {
-            feeds.refresh(view, Duration::from_millis(300))?;
-            term.draw(|f| render(f, view))?;
-            next = Instant::now() + Duration::from_secs(1);
-        }
-        if event::poll(
-            next.saturating_duration_since(Instant::now())
-                .min(Duration::from_millis(200)),
-        )? {
-            if let Event::Key(k) = event::read()? {
-                let ctrl_c =
-                    k.code == KeyCode::Char('c') && k.modifiers.contains(KeyModifiers::CONTROL);
-                if matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) || ctrl_c {
-                    return Ok(());
-                }
-            }
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use mtanet_ipc::node::NodeCensus;
+    use mtanet_ipc::{Command, ProcessStats};
+    use ratatui::Terminal;
+    use std::collections::BTreeMap;
 
     fn status() -> Status {
         let mut s: ProcessStats = bytemuck::Zeroable::zeroed();
@@ -564,21 +331,5 @@ mod tests {
         ] {
             assert!(t.contains(want), "{want:?} missing from\n{t}");
         }
-    }
-
-    #[test]
-    fn rates_come_from_counters_and_survive_a_restart() {
-        let mut r = Rate::default();
-        let t0 = Instant::now();
-        r.update(Some(100), t0);
-        assert_eq!(r.hz, None, "one reading has no rate");
-        r.update(Some(150), t0 + Duration::from_secs(1));
-        assert_eq!(r.hz, Some(50.0));
-        r.update(Some(3), t0 + Duration::from_secs(2));
-        assert_eq!(
-            r.hz,
-            Some(0.0),
-            "a counter that restarted is not a negative rate"
-        );
     }
 }
