@@ -109,6 +109,7 @@ impl View {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn rates_come_from_counters_and_survive_a_restart() {
