@@ -57,6 +57,17 @@ impl Default for CostConfig {
     }
 }
 
+/// faer parallelises through rayon's global pool by default, and the pool's threads inherit the
+/// scheduling class of the thread that first uses it: the predictor's control loop, SCHED_FIFO.
+/// Two rayon workers then ran (and spun for work) at the loop's own real-time priority, where
+/// the loop could not preempt them; a 10-minute soak saw 4 commands dropped. An 8x8 eigen
+/// decomposition has nothing to gain from threads: faer runs sequentially in every process that
+/// plans, and no rayon pool is made.
+fn sequential_faer() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| faer::set_global_parallelism(faer::Par::Seq));
+}
+
 /// The terms of G for one plan (lower is better).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Terms {
@@ -79,6 +90,7 @@ pub struct Cost {
 
 impl Cost {
     pub fn new(preferred: PreferredLine, cfg: CostConfig) -> Self {
+        sequential_faer();
         let rows = preferred.shape.height;
         let floor = f64::from(cfg.position_floor).powi(2);
         let cov = faer::Mat::<f64>::from_fn(rows, rows, |i, j| {
