@@ -55,7 +55,8 @@ fn rate(screen: &str, topic: &str) -> Option<f64> {
 fn top_shows_a_learning_stack_and_the_run_folder_has_its_curves() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("top");
-    let stack = up(dir.path(), &ns, 45, &[]);
+    // Long enough that top's frames come while it runs (lockstep runs ~3-5x real time here).
+    let stack = up(dir.path(), &ns, 120, &[]);
     let c = wait_for_alive(&ns, 4, Duration::from_secs(60));
     assert!(c.alive.len() >= 4, "the stack did not come up: {c:?}");
     let out = Command::new(bin("mta"))
@@ -68,15 +69,21 @@ fn top_shows_a_learning_stack_and_the_run_folder_has_its_curves() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // The last of the three frames, 24 rows of at most 80 columns.
+    // Three frames of 24 rows of at most 80 columns; the last one has rates (two readings).
     let frames: Vec<&str> = screen.split("\n\n").collect();
+    assert_eq!(frames.len(), 3, "{screen}");
     let last = frames.last().unwrap();
     println!("{last}");
-    assert_eq!(last.lines().count(), 24, "{last}");
-    assert!(last.lines().all(|l| l.chars().count() <= 80), "{last}");
+    for f in &frames {
+        assert_eq!(f.lines().count(), 24, "{f}");
+        assert!(f.lines().all(|l| l.chars().count() <= 80), "{f}");
+    }
+    // Each process alive in a frame (the trainer is silent for a few seconds while it probes).
     for p in ["simulator", "predictor", "trainer"] {
-        let row = last.lines().find(|l| l.contains(p) && l.contains("alive"));
-        assert!(row.is_some(), "{p} is not shown alive:\n{last}");
+        let shown = frames
+            .iter()
+            .any(|f| f.lines().any(|l| l.contains(p) && l.contains("alive")));
+        assert!(shown, "{p} is not shown alive:\n{screen}");
     }
     let obs = rate(last, "observation").unwrap_or(0.0);
     let cmd = rate(last, "command").unwrap_or(0.0);
