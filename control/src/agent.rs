@@ -17,8 +17,9 @@ use crate::drive::{Drive, Wheels, mean_wheels};
 use crate::planner::Outcome;
 use crate::preference::{FrameShape, PreferenceLearner};
 use crate::reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
-use crate::worker::{PlanJob, PlanService};
+use crate::worker::PlanService;
 
+mod plans;
 mod types;
 pub use types::*;
 
@@ -331,93 +332,6 @@ impl Agent {
             && (self.cfg.min_probe <= -1.0
                 || h.probe
                     .is_none_or(|p| p >= self.cfg.distrust_probe.min(self.cfg.min_probe)))
-    }
-
-    /// The plan for the segment starting now: the one submitted a segment ago, or, if it is late
-    /// or failed, the rest of the previous plan.
-    /// How long to wait for a plan still out whose segment is past: in lockstep as long as a
-    /// plan may take, in real time not at all.
-    fn drain_wait(&self, lockstep: bool) -> Duration {
-        if lockstep {
-            Duration::from_secs_f64(self.cfg.lockstep_wait_ms.max(0.0) / 1000.0)
-        } else {
-            Duration::ZERO
-        }
-    }
-
-    /// The plan submitted a segment ago, if it is done in time (`plan_wait_ms` in real time).
-    fn fresh_plan<P, S>(&mut self, t: &Tick, plans: &mut P) -> Option<(Outcome, Duration)>
-    where
-        P: PlanService<S>,
-    {
-        let wait_ms = if t.lockstep {
-            self.cfg.lockstep_wait_ms
-        } else {
-            self.cfg.plan_wait_ms
-        };
-        let wanted = self.segment - 1;
-        let done = plans.wait(Duration::from_secs_f64(wait_ms.max(0.0) / 1000.0))?;
-        match done.outcome {
-            Ok(o) if done.segment == wanted => Some((o, done.compute)),
-            Ok(_) => None, // a late plan for a segment already past
-            Err(e) => {
-                self.stats.plan_errors += 1;
-                tracing::error!("planning failed: {e:#}");
-                None
-            }
-        }
-    }
-
-    /// Drives the plan's first segment now and keeps the rest for late plans.
-    fn adopt(&mut self, o: &Outcome) {
-        self.stats.plans += 1;
-        self.committed = o.plan[0].wheels();
-        self.spare = o.plan[1..].iter().copied().collect();
-    }
-
-    fn take_plan<P, S>(&mut self, t: &Tick, plans: &mut P) -> Option<(Outcome, Duration)>
-    where
-        P: PlanService<S>,
-    {
-        match self.fresh_plan(t, plans) {
-            Some(p) => {
-                self.adopt(&p.0);
-                Some(p)
-            }
-            None => {
-                self.stats.late_plans += 1;
-                if let Some(d) = self.spare.pop_front() {
-                    self.committed = d.wheels();
-                }
-                None
-            }
-        }
-    }
-
-    /// Submits the plan for the segment after this one, if the planner is free.
-    fn submit<M, P>(
-        &mut self,
-        model: &mut M,
-        plans: &mut P,
-        restart: Option<Drive>,
-    ) -> anyhow::Result<()>
-    where
-        M: AgentModel,
-        P: PlanService<M::Snapshot>,
-    {
-        let Some(cost) = self.cost.clone() else {
-            return Ok(());
-        };
-        if !plans.idle() {
-            return Ok(()); // still busy with a late plan: this segment goes without
-        }
-        plans.submit(PlanJob {
-            segment: self.segment,
-            start: model.snapshot()?,
-            committed: self.committed,
-            cost,
-            restart,
-        })
     }
 
     fn refresh_cost(&mut self) {

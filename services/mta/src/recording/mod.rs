@@ -10,12 +10,18 @@
 //! `CLOCK_MONOTONIC` stamp. Chunks are zstd-compressed and closed every `flush`, so a recorder
 //! killed mid-run leaves a file readable up to its last flush.
 
+mod read;
+#[cfg(test)]
+mod tests;
+
+pub use read::read;
+
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD as B64;
 use mtanet_ipc::{
@@ -309,194 +315,4 @@ fn raw_image_schema() -> Vec<u8> {
         }
     }))
     .expect("a schema serialises")
-}
-
-/// What a recording holds, in the order of its stamps.
-#[derive(Debug, Default)]
-pub struct Reading {
-    pub messages: Vec<(u64, Recorded)>,
-    /// Why reading stopped early (a truncated or damaged file): what came before is kept.
-    pub damaged: Option<String>,
-}
-
-fn decode_raw<T: bytemuck::Pod>(topic: &str, v: &Value) -> anyhow::Result<T> {
-    let s = v["raw"]
-        .as_str()
-        .with_context(|| format!("a {topic} message without its raw bytes"))?;
-    let bytes = B64
-        .decode(s)
-        .with_context(|| format!("{topic}: raw is not base64"))?;
-    if bytes.len() != std::mem::size_of::<T>() {
-        bail!(
-            "{topic}: {} raw bytes, this build's message has {} (recorded by another version?)",
-            bytes.len(),
-            std::mem::size_of::<T>()
-        );
-    }
-    Ok(bytemuck::pod_read_unaligned(&bytes))
-}
-
-fn decode(topic: &str, data: &[u8]) -> anyhow::Result<Option<Recorded>> {
-    if topic == CAMERA {
-        return Ok(None);
-    }
-    let v: Value = serde_json::from_slice(data).with_context(|| format!("{topic}: not JSON"))?;
-    Ok(Some(match topic {
-        names::OBSERVATION => Recorded::Observation(decode_raw(topic, &v)?),
-        names::COMMAND => Recorded::Command(decode_raw(topic, &v)?),
-        names::REPLAY => Recorded::Replay(Box::new(decode_raw(topic, &v)?)),
-        names::TRAINER_STATUS => Recorded::TrainerStatus(decode_raw(topic, &v)?),
-        names::WEIGHTS => {
-            let blob = match v["blob"].as_str() {
-                Some(b) => Some(B64.decode(b).context("weights: blob is not base64")?),
-                None => None,
-            };
-            Recorded::Weights(decode_raw(topic, &v)?, blob)
-        }
-        _ => return Ok(None),
-    }))
-}
-
-/// Reads every message it can: a truncated or damaged file gives the messages before the damage
-/// and says where reading stopped (`damaged`); a file that is no MCAP at all is an error.
-pub fn read(path: &Path) -> anyhow::Result<Reading> {
-    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let stream =
-        mcap::MessageStream::new_with_options(&buf, mcap::read::Options::IgnoreEndMagic.into())
-            .with_context(|| format!("{} is not an MCAP recording", path.display()))?;
-    let mut r = Reading::default();
-    for (i, m) in stream.enumerate() {
-        let m = match m {
-            Ok(m) => m,
-            Err(e) => {
-                r.damaged = Some(format!(
-                    "{}: unreadable after {i} messages ({e}); replaying what came before",
-                    path.display()
-                ));
-                break;
-            }
-        };
-        match decode(&m.channel.topic, &m.data) {
-            Ok(Some(rec)) => r.messages.push((m.log_time, rec)),
-            Ok(None) => {}
-            Err(e) => {
-                r.damaged = Some(format!("{}: message {i}: {e:#}", path.display()));
-                break;
-            }
-        }
-    }
-    if let (true, Some(why)) = (r.messages.is_empty(), &r.damaged) {
-        bail!("{why}: nothing in it can be replayed");
-    }
-    // One publisher per topic writes in order; across topics the stamps give the order.
-    r.messages.sort_by_key(|m| m.0);
-    Ok(r)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn obs(step: u64) -> Observation {
-        let mut o: Observation = bytemuck::Zeroable::zeroed();
-        o.stamp_ns = 1_000 + step * 20_000_000;
-        o.step = step;
-        o.sim_time_s = step as f64 * 0.02;
-        for (i, p) in o.image.iter_mut().enumerate() {
-            // Values JSON's shortest decimal form must carry exactly.
-            *p = (i as f32 * 0.1 + step as f32 / 3.0).fract();
-        }
-        o.command = [8.123_457, f32::MIN_POSITIVE];
-        o.truth.lateral_m = -0.001_234_567_89;
-        o
-    }
-
-    fn cmd(step: u64) -> Command {
-        let mut c: Command = bytemuck::Zeroable::zeroed();
-        c.stamp_ns = 2_000 + step * 20_000_000;
-        c.step = step;
-        c.wheel_velocity = [7.5, 1.0 / 3.0];
-        c.model_error_ratio = f32::NAN;
-        c
-    }
-
-    fn write(path: &Path, n: u64, flush_every: u64) {
-        let mut w = RecordingWriter::create(path).unwrap();
-        for s in 0..n {
-            w.observation(&obs(s)).unwrap();
-            w.command(&cmd(s)).unwrap();
-            if s % flush_every == flush_every - 1 {
-                w.flush().unwrap();
-            }
-        }
-        let h = WeightsHeader {
-            version: 3,
-            len: 4,
-            stamp_ns: 5,
-            ..Default::default()
-        };
-        w.weights(&h, Some(&[1, 2, 3, 4])).unwrap();
-        w.finish().unwrap();
-    }
-
-    #[test]
-    fn round_trips_every_message_bit_for_bit_in_stamp_order() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("r.mcap");
-        write(&path, 50, 10);
-        let r = read(&path).unwrap();
-        assert!(r.damaged.is_none(), "{:?}", r.damaged);
-        assert_eq!(r.messages.len(), 101);
-        let Recorded::Weights(h, Some(blob)) = &r.messages[0].1 else {
-            panic!("the weights (stamp 5) come first: {:?}", r.messages[0]);
-        };
-        assert_eq!((h.version, blob.as_slice()), (3, &[1u8, 2, 3, 4][..]));
-        let observations: Vec<&Observation> = r
-            .messages
-            .iter()
-            .filter_map(|m| match &m.1 {
-                Recorded::Observation(o) => Some(o),
-                _ => None,
-            })
-            .collect();
-        assert_eq!(observations.len(), 50);
-        for (s, o) in observations.iter().enumerate() {
-            assert_eq!(bytemuck::bytes_of(*o), bytemuck::bytes_of(&obs(s as u64)));
-        }
-        let c = r.messages.iter().find_map(|m| match &m.1 {
-            Recorded::Command(c) => Some(*c),
-            _ => None,
-        });
-        let c = c.unwrap();
-        assert!(c.model_error_ratio.is_nan(), "NaN survives through raw");
-        assert_eq!(bytemuck::bytes_of(&c), bytemuck::bytes_of(&cmd(0)));
-    }
-
-    #[test]
-    fn a_truncated_recording_replays_what_is_readable_and_says_so() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("r.mcap");
-        write(&path, 400, 100);
-        let full = std::fs::read(&path).unwrap();
-        // A recorder killed mid-write: the file ends inside the last chunks.
-        let cut = dir.path().join("cut.mcap");
-        std::fs::write(&cut, &full[..full.len() * 2 / 3]).unwrap();
-        let r = read(&cut).unwrap();
-        let n = r.messages.len();
-        assert!(r.damaged.is_some(), "the damage is reported");
-        assert!(
-            (200..800).contains(&n),
-            "the flushed chunks before the cut are read: {n}"
-        );
-        assert!(
-            r.damaged.as_ref().unwrap().contains("cut.mcap"),
-            "{:?}",
-            r.damaged
-        );
-        // Not an MCAP file at all: an error naming it.
-        let junk = dir.path().join("junk.mcap");
-        std::fs::write(&junk, b"not a recording").unwrap();
-        let e = read(&junk).unwrap_err();
-        assert!(format!("{e:#}").contains("junk.mcap"), "{e:#}");
-    }
 }

@@ -1,0 +1,166 @@
+//! Taking over and giving back: only on the line, only with a first plan in hand, and trust
+//! that a swing of the model's error or probe does not end.
+
+use super::*;
+
+#[test]
+fn active_inference_takes_over_only_with_a_first_plan_in_hand() {
+    let frame = line_frame(6.0, 0.0);
+    let mut model = Toy {
+        skip: 2,
+        health: Health {
+            model_over_copy: Some(0.3),
+            model_steps: 10,
+            probe: Some(0.9),
+        },
+        observed: Vec::new(),
+    };
+    let mut a = agent(&cfg());
+    // Real time, and the planner never done in time (a cold planner): the rule keeps driving,
+    // trying again each time the planner is free.
+    let mut never = FirstOnly {
+        answered: true,
+        ..Default::default()
+    };
+    for _ in 0..60 {
+        let t = Tick {
+            lockstep: false,
+            ..tick(&frame, CENTRED, [8.0; 2])
+        };
+        let d = a.step(&t, &mut model, &mut never).unwrap();
+        assert_ne!(d.driver, Driver::ActiveInference);
+    }
+    assert_eq!(a.stats.switches_to_active_inference, 0);
+    assert_eq!(
+        a.stats.late_plans, 0,
+        "no plan was due: active inference never drove"
+    );
+}
+
+#[test]
+fn takes_over_only_with_the_car_on_the_line() {
+    let frame = line_frame(6.0, 0.0);
+    let trusted = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.9),
+    };
+    let mut model = Toy {
+        skip: 1,
+        health: trusted,
+        observed: Vec::new(),
+    };
+    let mut plans = Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    );
+    let mut a = agent(&cfg());
+    for _ in 0..10 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    // Trusted and a preference learnt, but the line is gone (an exploration segment).
+    let floor = [0.85f32; 96];
+    for _ in 0..40 {
+        let d = a
+            .step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        assert_ne!(
+            d.driver,
+            Driver::ActiveInference,
+            "never taking over off the line"
+        );
+    }
+    let mut k = 0;
+    while !a.driving_by_active_inference() {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        k += 1;
+        assert!(k < 30, "takes over once the line has been found for 0.5 s");
+    }
+    assert_eq!(
+        k, 26,
+        "25 steps, then one (a model step here) to make the first plan"
+    );
+    assert_eq!(a.stats.fallbacks, 0);
+}
+
+#[test]
+fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
+    let frame = line_frame(6.0, 0.0);
+    let low_probe = Health {
+        model_over_copy: Some(0.3),
+        model_steps: 10,
+        probe: Some(0.2),
+    };
+    let mut model = Toy {
+        skip: 1,
+        health: low_probe,
+        observed: Vec::new(),
+    };
+    let mut plans = Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    );
+    let mut a = agent(&cfg());
+    for _ in 0..30 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        !a.driving_by_active_inference(),
+        "a probe below min_probe is not trusted"
+    );
+    model.health.probe = Some(0.9);
+    // One model step arms the takeover (its first plan), the next drives by it.
+    for _ in 0..2 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    // A probe that dips below min_probe but not below distrust_probe keeps the trust...
+    model.health.probe = Some(0.6);
+    a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+        .unwrap();
+    assert!(
+        a.driving_by_active_inference(),
+        "hysteresis: 0.6 is above 0.55"
+    );
+    // ...one below it ends it, and only min_probe brings it back.
+    model.health.probe = Some(0.5);
+    a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+        .unwrap();
+    assert!(!a.driving_by_active_inference(), "below distrust_probe");
+    model.health.probe = Some(0.6);
+    for _ in 0..5 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        !a.driving_by_active_inference(),
+        "0.6 does not win back the trust"
+    );
+    model.health.probe = Some(0.9);
+    // One model step arms the takeover (its first plan), the next drives by it.
+    for _ in 0..2 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    // A ratio above distrust_ratio for fewer than distrust_after_steps model steps is a swing.
+    model.health.model_over_copy = Some(2.0);
+    for _ in 0..40 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    for _ in 0..20 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(
+        !a.driving_by_active_inference(),
+        "sustained: the rule drives again"
+    );
+    assert_eq!(a.stats.switches_to_reactive, 2);
+}
