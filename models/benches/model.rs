@@ -77,7 +77,7 @@ fn inference(cfg: &ModelConfig) {
     let mut vs = nn::VarStore::new(Device::Cpu);
     let model = MtaPredNet::new(&vs.root(), cfg);
     vs.freeze();
-    let w = model.weights();
+    let w = model.inference_weights();
     let (h, wd, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
     let frame = Tensor::rand([1, 1, h, wd], F);
     let action = Tensor::rand([1, a], F) * 8.0;

@@ -66,7 +66,7 @@ pub fn collect_states(
     let layers = model.layers.len();
     let mut rs: Vec<Vec<Tensor>> = (0..layers).map(|_| Vec::new()).collect();
     let mut hs: Vec<Vec<Tensor>> = (0..layers).map(|_| Vec::new()).collect();
-    let w = model.weights();
+    let w = model.inference_weights();
     for t in 0..data.steps() {
         let (next, _) = model.f_step_with(&w, &state, &imgs.select(1, t), &acts.select(1, t))?;
         for (l, ls) in next.layers.iter().enumerate() {

@@ -78,7 +78,7 @@ pub fn figure_strip(
     let mut preds = Vec::new();
     let mut gu0: Vec<Vec<Tensor>> = (0..layers).map(|_| Vec::new()).collect(); // per layer, [C, H_l, W_l] per t
     let mut state = model.zero_state(1);
-    let w = model.weights();
+    let w = model.inference_weights();
     for t in 0..steps {
         let (next, out) = model.f_step_with(
             &w,

@@ -6,6 +6,7 @@
 //! from one MLP call, and an imagined step (E_0 = 0) skips what a zero input cannot change.
 
 use crate::config::{ActionWeighting, ModelConfig};
+use crate::packed_conv::{self, PackedConv};
 use crate::state::LayerState;
 use crate::units::Units;
 use tch::{Tensor, nn, nn::Module};
@@ -97,6 +98,37 @@ pub struct LayerWeights {
     w_no_e: Option<Tensor>,
     /// X_l when E_{l-1} = 0: maxpool(relu(conv(0))) = relu(bias), `[1, a, 1, 1]`.
     target_if_below_zero: Option<Tensor>,
+    /// Every convolution of a step packed for small batches; only in inference weights.
+    packed: Option<PackedLayer>,
+}
+
+/// A layer's convolutions as [`PackedConv`]s (see `packed_conv.rs` for why).
+#[derive(Debug)]
+struct PackedLayer {
+    /// The units' one convolution with its bias, and the same without the E columns (layer 0).
+    units: PackedConv,
+    units_no_e: Option<PackedConv>,
+    /// For candidates: the top-down columns alone (no bias; `None` at the top), the E and h
+    /// columns with the bias, the h columns with the bias.
+    up: Option<PackedConv>,
+    fixed: PackedConv,
+    h_only: PackedConv,
+    xhat: PackedConv,
+    input: Option<PackedConv>,
+}
+
+impl LayerWeights {
+    /// The packed convolutions, if these are inference weights, the batch is small enough and
+    /// no input tracks gradients (the packed form would cut the graph).
+    fn packed_for<T: std::borrow::Borrow<Tensor>>(
+        &self,
+        batch: i64,
+        inputs: &[T],
+    ) -> Option<&PackedLayer> {
+        let p = self.packed.as_ref()?;
+        let no_grad = inputs.iter().all(|t| !t.borrow().requires_grad());
+        (batch <= packed_conv::MAX_BATCH && no_grad).then_some(p)
+    }
 }
 
 impl PredLayer {
@@ -135,6 +167,7 @@ impl PredLayer {
         let e = 2 * self.a_channels;
         let cols = w.size()[1];
         LayerWeights {
+            packed: None,
             w_no_e: self
                 .input
                 .is_none()
@@ -145,6 +178,31 @@ impl PredLayer {
                     .map(|b| b.relu().view([1, self.a_channels, 1, 1]))
             }),
         }
+    }
+
+    /// [`Self::weights`] with every convolution also packed for small batches: for inference
+    /// (the packed form tracks no gradients).
+    pub fn inference_weights(&self) -> LayerWeights {
+        tch::no_grad(|| {
+            let mut lw = self.weights();
+            let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
+            let w = &lw.w;
+            let bias = Some(&self.units.bias);
+            let w_h = w.narrow(1, e + self.above, gc);
+            lw.packed = Some(PackedLayer {
+                units: PackedConv::new(w, bias),
+                units_no_e: lw.w_no_e.as_ref().map(|w| PackedConv::new(w, bias)),
+                up: (self.above > 0).then(|| PackedConv::new(&w.narrow(1, e, self.above), None)),
+                fixed: PackedConv::new(&Tensor::cat(&[&w.narrow(1, 0, e), &w_h], 1), bias),
+                h_only: PackedConv::new(&w_h, bias),
+                xhat: PackedConv::new(&self.xhat.ws, self.xhat.bs.as_ref()),
+                input: self
+                    .input
+                    .as_ref()
+                    .map(|c| PackedConv::new(&c.ws, c.bs.as_ref())),
+            });
+            lw
+        })
     }
 
     /// Number of generative units G.
@@ -188,7 +246,14 @@ impl PredLayer {
             parts.push(self.up(r));
         }
         parts.push(prev.h.flatten(1, 2));
-        let gates = if prev.h.size()[0] >= GROUPED_FROM_BATCH {
+        let packed = lw.packed_for(prev.h.size()[0], &parts);
+        let gates = if let Some(p) = packed {
+            let conv = match (&p.units_no_e, e_zero) {
+                (Some(c), true) => c,
+                _ => &p.units,
+            };
+            conv.forward(&Tensor::cat(&parts, 1))
+        } else if prev.h.size()[0] >= GROUPED_FROM_BATCH {
             // Compute-bound: the block-diagonal h columns would multiply zeros G - 1 times
             // in G; a grouped convolution over the units' own h does only the real work.
             let h = parts.pop().expect("h");
@@ -241,25 +306,48 @@ impl PredLayer {
         let Some(r) = above else {
             return self.top_down(lw, prev, None, mix, e_zero);
         };
-        let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
-        let w = &lw.w;
-        let w_up = w.narrow(1, e, self.above);
-        let w_h = w.narrow(1, e + self.above, gc);
         let h_flat = prev.h.flatten(1, 2);
-        let bias = Some(&self.units.bias);
-        let shared = if e_zero {
-            self.units.gates(&h_flat, &w_h, bias)
-        } else {
-            let w_fixed = Tensor::cat(&[&w.narrow(1, 0, e), &w_h], 1);
-            self.units
-                .gates(&Tensor::cat(&[&prev.e, &h_flat], 1), &w_fixed, bias)
+        let up = self.up(r);
+        // The shared columns at batch 1, the top-down ones at batch K: each packed if small.
+        let shared = match lw.packed_for(h_flat.size()[0], &[&h_flat, &prev.e]) {
+            Some(p) if e_zero => p.h_only.forward(&h_flat),
+            Some(p) => p.fixed.forward(&Tensor::cat(&[&prev.e, &h_flat], 1)),
+            None => self.shared_gates(lw, prev, &h_flat, e_zero),
         };
-        let gates = self.units.gates(&self.up(r), &w_up, None) + shared;
+        let from_above = match lw.packed_for(up.size()[0], &[&up]) {
+            Some(p) => p.up.as_ref().expect("a layer below the top").forward(&up),
+            None => {
+                let w_up = lw.w.narrow(1, 2 * self.a_channels, self.above);
+                self.units.gates(&up, &w_up, None)
+            }
+        };
+        let gates = from_above + shared;
         let (h_new, c_new) = self.units.cell(&gates, &prev.c);
         let h = self.integrate(&prev.h, h_new);
         let c = self.integrate(&prev.c, c_new);
         let r = Self::mix(&h, mix);
         (h, c, r)
+    }
+
+    /// The gates' columns that are the same for every candidate (E and h, with the bias),
+    /// with libtorch's convolution.
+    fn shared_gates(
+        &self,
+        lw: &LayerWeights,
+        prev: &LayerState,
+        h_flat: &Tensor,
+        e_zero: bool,
+    ) -> Tensor {
+        let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
+        let w_h = lw.w.narrow(1, e + self.above, gc);
+        let bias = Some(&self.units.bias);
+        if e_zero {
+            self.units.gates(h_flat, &w_h, bias)
+        } else {
+            let w_fixed = Tensor::cat(&[&lw.w.narrow(1, 0, e), &w_h], 1);
+            self.units
+                .gates(&Tensor::cat(&[&prev.e, h_flat], 1), &w_fixed, bias)
+        }
     }
 
     /// Leaky integration with tau: (1 - 1/tau) old + (1/tau) new, as one lerp.
@@ -296,8 +384,11 @@ impl PredLayer {
     }
 
     /// Xhat_l = relu(conv(R_l)).
-    pub fn predict(&self, r: &Tensor) -> Tensor {
-        self.xhat.forward(r).relu()
+    pub fn predict(&self, lw: &LayerWeights, r: &Tensor) -> Tensor {
+        match lw.packed_for(r.size()[0], &[r]) {
+            Some(p) => p.xhat.forward(r).relu(),
+            None => self.xhat.forward(r).relu(),
+        }
     }
 
     /// X_l from E_{l-1}: maxpool(relu(conv(E_{l-1}))), or its constant when E_{l-1} = 0. Only
@@ -307,11 +398,12 @@ impl PredLayer {
         match (e_below, &lw.target_if_below_zero) {
             (None, Some(t)) => Some(t.shallow_clone()),
             (Some(e), _) => {
-                Some(
-                    conv.forward(e)
-                        .relu()
-                        .max_pool2d([2, 2], [2, 2], [0, 0], [1, 1], false),
-                )
+                let packed = lw.packed_for(e.size()[0], &[e]);
+                let z = match packed.and_then(|p| p.input.as_ref()) {
+                    Some(c) => c.forward(e),
+                    None => conv.forward(e),
+                };
+                Some(z.relu().max_pool2d([2, 2], [2, 2], [0, 0], [1, 1], false))
             }
             (None, None) => None,
         }

@@ -25,6 +25,7 @@ pub mod figure;
 pub mod layer;
 pub mod live;
 pub mod model;
+pub mod packed_conv;
 pub mod reference;
 pub mod sequences;
 pub mod state;

@@ -64,7 +64,7 @@ impl LiveModel {
         let (mut vs, model) = checkpoint::from_bytes(bytes)?.build()?;
         // Inference only: no gradients are kept for these weights.
         vs.freeze();
-        let weights = tch::no_grad(|| model.weights());
+        let weights = model.inference_weights();
         let state = model.zero_state(1);
         Ok(Self {
             vs,
@@ -87,7 +87,7 @@ impl LiveModel {
         let ck = checkpoint::from_bytes(bytes)?;
         if ck.config == *self.model.config() {
             ck.apply(&mut self.vs, &ck.config)?;
-            self.weights = tch::no_grad(|| self.model.weights());
+            self.weights = self.model.inference_weights();
             self.version = version;
         } else {
             *self = Self::from_bytes(bytes, version)?;
@@ -102,7 +102,7 @@ impl LiveModel {
         if other.config() != self.config() || self.vs.copy(&other.vs).is_err() {
             return false;
         }
-        self.weights = tch::no_grad(|| self.model.weights());
+        self.weights = self.model.inference_weights();
         self.version = other.version;
         true
     }
@@ -213,7 +213,7 @@ impl Imagined {
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, CheckpointError> {
         let (mut vs, model) = checkpoint::from_bytes(bytes)?.build()?;
         vs.freeze();
-        let weights = tch::no_grad(|| model.weights());
+        let weights = model.inference_weights();
         Ok(Self {
             vs,
             model,
@@ -227,7 +227,7 @@ impl Imagined {
         if other.model.config() != self.model.config() || self.vs.copy(&other.vs).is_err() {
             return false;
         }
-        self.weights = tch::no_grad(|| self.model.weights());
+        self.weights = self.model.inference_weights();
         true
     }
 
@@ -236,7 +236,7 @@ impl Imagined {
         let ck = checkpoint::from_bytes(bytes)?;
         if ck.config == *self.model.config() {
             ck.apply(&mut self.vs, &ck.config)?;
-            self.weights = tch::no_grad(|| self.model.weights());
+            self.weights = self.model.inference_weights();
         } else {
             *self = Self::from_bytes(bytes)?;
         }

@@ -84,6 +84,19 @@ impl MtaPredNet {
         }
     }
 
+    /// [`Self::weights`] for inference: the convolutions also packed for small batches
+    /// (`packed_conv.rs`), several times faster at batch 1. Build once per weights version; they
+    /// track no gradients (a step through them with inputs that do falls back to libtorch).
+    pub fn inference_weights(&self) -> StepWeights {
+        StepWeights {
+            layers: self
+                .layers
+                .iter()
+                .map(PredLayer::inference_weights)
+                .collect(),
+        }
+    }
+
     /// The action weights of every layer for actions `[N, A]`: one `[N, G_l]` per layer.
     pub(crate) fn action_weights(&self, actions: &Tensor) -> Vec<Tensor> {
         self.layers
@@ -224,7 +237,7 @@ impl MtaPredNet {
         let mut prediction = None;
         let mut x = frame;
         for (l, ((layer, (h, c)), r)) in self.layers.iter().zip(tops).zip(rs).enumerate() {
-            let xhat = layer.predict(&r);
+            let xhat = layer.predict(&w.layers[l], &r);
             let e = if l == 0 && imagined {
                 xhat.zeros_like().repeat([1, 2, 1, 1])
             } else {
@@ -335,7 +348,7 @@ impl MtaPredNet {
         } else {
             return Err(ModelError::Batch { state: b, input: k });
         };
-        Ok(self.layers[0].predict(&rs[0]))
+        Ok(self.layers[0].predict(&w.layers[0], &rs[0]))
     }
 
     pub(crate) fn check_state(&self, state: &State) -> Result<i64, ModelError> {

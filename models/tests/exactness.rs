@@ -2,7 +2,7 @@
 //! candidate work, imagined steps skipping a zero E_0) against the straightforward form in
 //! `reference.rs`, on random weights and inputs: outputs, states and gradients agree to 1e-5.
 
-use mtanet_models::{ModelConfig, MtaPredNet, State, reference};
+use mtanet_models::{ModelConfig, MtaPredNet, State, StepWeights, reference};
 use tch::{Device, Kind, Tensor, nn};
 
 const TOL: f64 = 1e-5;
@@ -73,6 +73,21 @@ fn warm(model: &MtaPredNet, cfg: &ModelConfig, b: i64) -> State {
     out.state
 }
 
+/// Both kinds of step weights, each with the batch sizes to try: libtorch's convolutions, and
+/// the packed ones of inference (used up to `packed_conv::MAX_BATCH`).
+fn both_weights(model: &MtaPredNet, batches: [i64; 2]) -> Vec<(String, StepWeights, i64)> {
+    let mut all = Vec::new();
+    for b in batches {
+        all.push((format!("weights, batch {b}"), model.weights(), b));
+        all.push((
+            format!("inference weights, batch {b}"),
+            model.inference_weights(),
+            b,
+        ));
+    }
+    all
+}
+
 #[test]
 fn steps_and_imagined_steps_match_the_straightforward_form() {
     let _seed = seeded(1);
@@ -80,29 +95,32 @@ fn steps_and_imagined_steps_match_the_straightforward_form() {
     for (name, cfg) in configs() {
         let vs = nn::VarStore::new(Device::Cpu);
         let model = MtaPredNet::new(&vs.root(), &cfg);
-        let state = warm(&model, &cfg, 3);
-        let (f, a) = (frames(&cfg, 3, 1).select(1, 0), actions(3, 1).select(1, 0));
-        let (fast, out) = model.f_step(&state, &f, &a).unwrap();
-        let (slow, pred) = reference::step(&model, &state, Some(&f), &a);
-        close(
-            &format!("{name}: observed prediction"),
-            &out.prediction,
-            &pred,
-        );
-        same_state(&format!("{name}: observed step"), &fast, &slow);
-        // Two imagined steps: the second starts from an imagined state (E_0 = 0 skipped).
-        let (mut fast, mut slow) = (fast, slow);
-        for i in 0..2 {
-            let a = actions(3, 1).select(1, 0);
-            let (f_next, f_pred) = model.f_imagine_step(&fast, &a).unwrap();
-            let (s_next, s_pred) = reference::step(&model, &slow, None, &a);
+        for (wname, w, b) in both_weights(&model, [1, 6]) {
+            let name = format!("{name}, {wname}");
+            let state = warm(&model, &cfg, b);
+            let (f, a) = (frames(&cfg, b, 1).select(1, 0), actions(b, 1).select(1, 0));
+            let (fast, out) = model.f_step_with(&w, &state, &f, &a).unwrap();
+            let (slow, pred) = reference::step(&model, &state, Some(&f), &a);
             close(
-                &format!("{name}: imagined prediction {i}"),
-                &f_pred,
-                &s_pred,
+                &format!("{name}: observed prediction"),
+                &out.prediction,
+                &pred,
             );
-            same_state(&format!("{name}: imagined step {i}"), &f_next, &s_next);
-            (fast, slow) = (f_next, s_next);
+            same_state(&format!("{name}: observed step"), &fast, &slow);
+            // Two imagined steps: the second starts from an imagined state (E_0 = 0 skipped).
+            let (mut fast, mut slow) = (fast, slow);
+            for i in 0..2 {
+                let a = actions(b, 1).select(1, 0);
+                let (f_next, f_pred) = model.f_imagine_step_with(&w, &fast, &a).unwrap();
+                let (s_next, s_pred) = reference::step(&model, &slow, None, &a);
+                close(
+                    &format!("{name}: imagined prediction {i}"),
+                    &f_pred,
+                    &s_pred,
+                );
+                same_state(&format!("{name}: imagined step {i}"), &f_next, &s_next);
+                (fast, slow) = (f_next, s_next);
+            }
         }
     }
 }
@@ -118,31 +136,62 @@ fn rollouts_and_candidates_match_one_candidate_at_a_time() {
         let (imagined, _) = model
             .f_imagine_step(&observed, &actions(1, 1).select(1, 0))
             .unwrap();
-        let w = model.weights();
-        let (k, h) = (5, 4);
-        for (from, start) in [("observed", &observed), ("imagined", &imagined)] {
-            let plans = actions(k, h);
-            let (preds, end) = model.f_rollout(&w, start, &plans).unwrap();
-            assert_eq!(preds.size(), [k, h, 1, cfg.image_height, cfg.image_width]);
-            let mut slow = start.expand(k);
-            let mut slow_preds = Vec::new();
-            for s in 0..h {
-                let (next, p) = reference::step(&model, &slow, None, &plans.select(1, s));
-                slow_preds.push(p);
-                slow = next;
+        // K = 2: every convolution packed; K = 5: the shared columns packed, the rest not.
+        for (wname, w, k) in both_weights(&model, [2, 5]) {
+            let h = 4;
+            for (from, start) in [("observed", &observed), ("imagined", &imagined)] {
+                let name = format!("{name}, {wname}: from {from}");
+                let plans = actions(k, h);
+                let (preds, end) = model.f_rollout(&w, start, &plans).unwrap();
+                assert_eq!(preds.size(), [k, h, 1, cfg.image_height, cfg.image_width]);
+                let mut slow = start.expand(k);
+                let mut slow_preds = Vec::new();
+                for s in 0..h {
+                    let (next, p) = reference::step(&model, &slow, None, &plans.select(1, s));
+                    slow_preds.push(p);
+                    slow = next;
+                }
+                close(
+                    &format!("{name}: rollout"),
+                    &preds,
+                    &Tensor::stack(&slow_preds, 1),
+                );
+                same_state(&format!("{name}: rollout end"), &end, &slow);
             }
-            close(
-                &format!("{name}: rollout from {from}"),
-                &preds,
-                &Tensor::stack(&slow_preds, 1),
-            );
-            same_state(&format!("{name}: rollout end from {from}"), &end, &slow);
-            let one = plans.select(1, 0);
+        }
+        for (from, start) in [("observed", &observed), ("imagined", &imagined)] {
+            let one = actions(5, 1).select(1, 0);
             let cand = model.f_predict_candidates(start, &one).unwrap();
-            let (_, p) = reference::step(&model, &start.expand(k), None, &one);
+            let (_, p) = reference::step(&model, &start.expand(5), None, &one);
             close(&format!("{name}: candidates from {from}"), &cand, &p);
         }
     }
+}
+
+#[test]
+fn inference_weights_leave_inputs_that_track_gradients_to_libtorch() {
+    let _seed = seeded(4);
+    let (_, cfg) = configs().remove(0);
+    let vs = nn::VarStore::new(Device::Cpu);
+    let model = MtaPredNet::new(&vs.root(), &cfg);
+    let state = tch::no_grad(|| warm(&model, &cfg, 1));
+    let a = actions(1, 1).select(1, 0);
+    let frame = frames(&cfg, 1, 1).select(1, 0);
+    let grad_of_frame = |w: &StepWeights| {
+        let f = frame.copy().set_requires_grad(true);
+        let (next, _) = model.f_step_with(w, &state, &f, &a).unwrap();
+        // The frame reaches the next prediction only through the convolutions.
+        let (_, p) = model.f_imagine_step_with(w, &next, &a).unwrap();
+        p.sum(Kind::Float).backward();
+        f.grad()
+    };
+    let plain = grad_of_frame(&model.weights());
+    let packed = grad_of_frame(&model.inference_weights());
+    assert!(
+        plain.abs().sum(Kind::Float).double_value(&[]) > 0.0,
+        "the frame must matter"
+    );
+    close("frame gradient through inference weights", &packed, &plain);
 }
 
 #[test]
