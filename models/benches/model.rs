@@ -6,7 +6,9 @@
 //! every op is a few microseconds of dispatch, which threads cannot split, and on the 2 shared
 //! cores two threads collapse 5-50x whenever another process holds a core (docs/measurements.md).
 //! Optional: MTANET_BENCH_CONFIG=file.toml (model keys) to bench another size in place of the
-//! default network; MTANET_BENCH_QUICK=1 for a short run.
+//! default network; MTANET_BENCH_QUICK=1 for a short run; MTANET_BENCH_PEER="python script.py"
+//! to time the plain PyTorch script (`mta_prednet_torch.py`, from a virtualenv outside the
+//! project) in the same run, on the same synthetic data, and print the two side by side.
 
 use hdrhistogram::Histogram;
 use mtanet_models::{ModelConfig, MtaPredNet, TrainConfig, Trainer, reference};
@@ -72,6 +74,31 @@ fn peak_rss_mib() -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
+/// The batch-1 step (carried state, inference weights) and the straightforward form's.
+fn step_batch1(cfg: &ModelConfig) -> (Row, Row) {
+    let _g = tch::no_grad_guard();
+    let mut vs = nn::VarStore::new(Device::Cpu);
+    let model = MtaPredNet::new(&vs.root(), cfg);
+    vs.freeze();
+    let w = model.inference_weights();
+    let (h, wd, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
+    let frame = Tensor::rand([1, 1, h, wd], F);
+    let action = Tensor::rand([1, a], F) * 8.0;
+    let mut s = model.zero_state(1);
+    let fast = measure(3000, || {
+        let (next, out) = model.f_step_with(&w, &s, &frame, &action).unwrap();
+        let _ = out.prediction.double_value(&[0, 0, 0, 0]);
+        s = next;
+    });
+    let mut s = model.zero_state(1);
+    let slow = measure(1000, || {
+        let (next, p) = reference::step(&model, &s, Some(&frame), &action);
+        let _ = p.double_value(&[0, 0, 0, 0]);
+        s = next;
+    });
+    (fast, slow)
+}
+
 fn inference(cfg: &ModelConfig) {
     let _g = tch::no_grad_guard();
     let mut vs = nn::VarStore::new(Device::Cpu);
@@ -85,18 +112,7 @@ fn inference(cfg: &ModelConfig) {
     for _ in 0..5 {
         state = model.f_step_with(&w, &state, &frame, &action).unwrap().0;
     }
-    let mut s = state.shallow_clone();
-    let fast = measure(3000, || {
-        let (next, out) = model.f_step_with(&w, &s, &frame, &action).unwrap();
-        let _ = out.prediction.double_value(&[0, 0, 0, 0]);
-        s = next;
-    });
-    let mut s = state.shallow_clone();
-    let slow = measure(1000, || {
-        let (next, p) = reference::step(&model, &s, Some(&frame), &action);
-        let _ = p.double_value(&[0, 0, 0, 0]);
-        s = next;
-    });
+    let (fast, slow) = step_batch1(cfg);
     print("step, batch 1", &fast, Some(&slow));
     for (k, steps, iters) in [(16, 1, 1000), (64, 1, 500), (16, 15, 200), (32, 4, 300)] {
         let plans = Tensor::rand([k, steps, a], F) * 8.0;
@@ -120,7 +136,7 @@ fn inference(cfg: &ModelConfig) {
     }
 }
 
-fn training(name: &str, cfg: &ModelConfig) {
+fn training(name: &str, cfg: &ModelConfig) -> Row {
     let train_cfg = TrainConfig::default();
     let mut trainer = Trainer::new(cfg, &train_cfg);
     let (b, t) = (train_cfg.batch_size, train_cfg.bptt);
@@ -143,6 +159,66 @@ fn training(name: &str, cfg: &ModelConfig) {
         &fast,
         Some(&slow),
     );
+    fast
+}
+
+/// What the PyTorch script reports for itself: (median s per update, median and p99 us per
+/// batch-1 step), after training on 160 synthetic 20-step sequences (90 updates, batch 16).
+fn peer(command: &str, cfg: &ModelConfig) -> Result<(f64, f64, f64), String> {
+    let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
+    for (file, sequences, seed) in [("train.npz", 160, 1), ("eval.npz", 32, 2)] {
+        let synth = mtanet_models::synth::SynthConfig {
+            sequences,
+            steps: 20,
+            height: cfg.image_height,
+            width: cfg.image_width,
+            seed,
+            ..Default::default()
+        };
+        let data = mtanet_models::synth::generate(&synth).map_err(|e| e.to_string())?;
+        data.save_npz(dir.path().join(file))
+            .map_err(|e| e.to_string())?;
+    }
+    let mut words = command.split_whitespace();
+    let program = words.next().ok_or("MTANET_BENCH_PEER is empty")?;
+    let channels: Vec<String> = cfg.channels.iter().map(i64::to_string).collect();
+    let out = dir.path().join("peer.json");
+    let status = std::process::Command::new(program)
+        .args(words)
+        .args([
+            "--epochs",
+            "9",
+            "--threads",
+            "1",
+            "--ch",
+            &channels.join(","),
+        ])
+        .arg("--data")
+        .arg(dir.path().join("train.npz"))
+        .arg("--eval")
+        .arg(dir.path().join("eval.npz"))
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .map_err(|e| format!("{program}: {e}"))?;
+    if !status.success() {
+        return Err(format!("{command} exited with {status}"));
+    }
+    let json: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&out).map_err(|e| format!("{}: {e}", out.display()))?,
+    )
+    .map_err(|e| format!("{}: {e}", out.display()))?;
+    let field = |k: &str| {
+        json[k]
+            .as_f64()
+            .ok_or_else(|| format!("{}: no number `{k}`", out.display()))
+    };
+    Ok((
+        field("sec_per_update_median")?,
+        field("infer_us_per_step_median_b1")?,
+        field("infer_us_per_step_p99_b1")?,
+    ))
 }
 
 fn main() {
@@ -194,9 +270,15 @@ fn main() {
         "", "", "", "", "", "", "", ""
     );
     inference(&default);
+    let (script_step, script_step_ref) = step_batch1(&script);
+    print(
+        "step, batch 1, 1/16/32",
+        &script_step,
+        Some(&script_step_ref),
+    );
     training("default", &default);
     let rss_default = peak_rss_mib();
-    training("1/16/32", &script);
+    let script_update = training("1/16/32", &script);
     println!(
         "peak RSS of this process (VmHWM): {rss_default:.0} MiB after the default network's training, {:.0} MiB after the 1/16/32 one's",
         peak_rss_mib()
@@ -216,4 +298,42 @@ fn main() {
         let _ = ck.build().expect("build");
     });
     print("checkpoint from bytes + build", &dec, None);
+    if let Ok(command) = std::env::var("MTANET_BENCH_PEER") {
+        match peer(&command, &script) {
+            Ok((update_s, step_us, step_p99_us)) => {
+                println!(
+                    "\nthe PyTorch script, same run, same 1/16/32 network (its own timers; p50 is its median)"
+                );
+                println!(
+                    "| {:<40} | {:>10} | {:>10} | {:>10} |",
+                    "case", "script p50", "ours p50", "ours faster"
+                );
+                println!("|{:-<42}|{:->12}|{:->12}|{:->12}|", "", "", "", "");
+                let ours_ms = script_update.0[0];
+                println!(
+                    "| {:<40} | {:>10.3} | {:>10.3} | {:>10} |",
+                    "training update 16 x 20 (ms)",
+                    update_s * 1e3,
+                    ours_ms,
+                    format!("{:.2}x", update_s * 1e3 / ours_ms)
+                );
+                let ours_us = script_step.0[0] * 1e3;
+                println!(
+                    "| {:<40} | {:>10.1} | {:>10.1} | {:>10} |",
+                    "step, batch 1 (us)",
+                    step_us,
+                    ours_us,
+                    format!("{:.2}x", step_us / ours_us)
+                );
+                println!(
+                    "| {:<40} | {:>10.1} | {:>10.1} | {:>10} |",
+                    "step, batch 1, p99 (us)",
+                    step_p99_us,
+                    script_step.0[1] * 1e3,
+                    format!("{:.2}x", step_p99_us / (script_step.0[1] * 1e3))
+                );
+            }
+            Err(e) => println!("\nthe PyTorch script could not be timed: {e}"),
+        }
+    }
 }
