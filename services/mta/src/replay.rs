@@ -42,7 +42,7 @@ pub struct ReplayArgs {
     /// How long to wait for a predictor to subscribe.
     #[arg(long, default_value_t = 30.0)]
     wait_s: f64,
-    /// Lockstep: how long to wait for each command.
+    /// How long to wait for a command: each one in lockstep, the last one when paced.
     #[arg(long, default_value_t = 5000)]
     command_timeout_ms: u64,
 }
@@ -175,6 +175,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<()> {
 
     let t0 = Instant::now();
     let mut sim0 = None;
+    let mut last_step = None;
     for (_, m) in &reading.messages {
         if shutdown.requested() {
             break;
@@ -201,6 +202,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<()> {
                 sent.stamp_ns = stamp::monotonic_ns();
                 obs_tx.send_with(|slot| *slot = sent)?;
                 cmp.summary.observations_sent += 1;
+                last_step = Some(o.step);
                 if args.lockstep {
                     let answered = wait_for(&cmds, o.step, args.command_timeout_ms, &mut cmp)?;
                     if !answered {
@@ -213,9 +215,10 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<()> {
             _ => {}
         }
     }
-    // The last commands of a paced replay.
-    std::thread::sleep(Duration::from_millis(200));
-    cmds.for_each(|c| cmp.check(c))?;
+    // A paced replay has not waited for its last commands (a lockstep one awaited each).
+    if let (false, Some(step)) = (args.lockstep, last_step) {
+        wait_for(&cmds, step, args.command_timeout_ms, &mut cmp)?;
+    }
     let s = &cmp.summary;
     println!("{}", serde_json::to_string_pretty(s)?);
     args.common.write_summary(s)?;

@@ -178,7 +178,7 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
     if let Err(e) = lap_trace(dir, &info.track) {
         tracing::warn!("no lap trace picture: {e:#}");
     }
-    latency_from_summaries(dir)?;
+    latency_from(dir, &sim, pred.as_ref())?;
     for (name, draw) in [
         (
             "learning.png",
@@ -274,15 +274,25 @@ pub fn latency_from_summaries(dir: &Path) -> anyhow::Result<bool> {
         return Ok(false);
     };
     let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
-    let pred_hist = pred.map(|p| p.compute_hist).unwrap_or_default();
+    latency_from(dir, &sim, pred.as_ref())?;
+    Ok(true)
+}
+
+/// `latency.png` in `dir` from summaries already read.
+fn latency_from(
+    dir: &Path,
+    sim: &SimulatorSummary,
+    pred: Option<&PredictorSummary>,
+) -> anyhow::Result<()> {
+    let empty = Vec::new();
+    let pred_hist = pred.map_or(&empty, |p| &p.compute_hist);
     latency_picture(
         &dir.join("latency.png"),
         &[
             ("simulator step", &sim.step_time_hist),
-            ("predictor compute", &pred_hist),
+            ("predictor compute", pred_hist),
         ],
-    )?;
-    Ok(true)
+    )
 }
 
 /// Log-x histograms, one row each.

@@ -354,25 +354,20 @@ impl ProgressCsv {
     }
 
     fn row(&mut self, o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) {
-        let (Some(out), Some(o)) = (self.out.as_mut(), o) else {
+        let (Some(out), Some(v)) = (self.out.as_mut(), Latest::of(o, c)) else {
             return;
         };
-        let f = |v: Option<f32>| {
-            v.filter(|v| v.is_finite())
-                .map_or(String::new(), |v| format!("{v:.4}"))
-        };
-        let driver = c
-            .and_then(|c| CommandSource::from_u32(c.source))
-            .map_or("", CommandSource::name);
+        let f = |v: Option<f32>| v.map_or(String::new(), |v| format!("{v:.4}"));
         let res = writeln!(
             out,
-            "{:.1},{},{:.2},{laps},{driver},{},{},{}",
+            "{:.1},{},{:.2},{laps},{},{},{},{}",
             wall.as_secs_f64(),
-            o.step,
-            o.step as f64 * mtanet_ipc::CONTROL_PERIOD_S,
-            f(c.map(|c| c.model_error_ratio)),
-            f(c.map(|c| c.probe)),
-            f(c.map(|c| (c.compute_ns as f64 / 1e6) as f32)),
+            v.step,
+            v.sim_s,
+            v.driver.unwrap_or(""),
+            f(v.ratio),
+            f(v.probe),
+            f(v.predictor_ms),
         )
         .and_then(|_| out.flush());
         if let Err(e) = res {
@@ -382,23 +377,47 @@ impl ProgressCsv {
     }
 }
 
+/// What progress.csv and the progress line show of the newest observation and command.
+struct Latest {
+    step: u64,
+    sim_s: f64,
+    driver: Option<&'static str>,
+    /// Non-finite values (no model yet) are left out.
+    ratio: Option<f32>,
+    probe: Option<f32>,
+    predictor_ms: Option<f32>,
+}
+
+impl Latest {
+    fn of(o: Option<&Observation>, c: Option<&Command>) -> Option<Self> {
+        let o = o?;
+        let finite = |v: Option<f32>| v.filter(|v| v.is_finite());
+        Some(Self {
+            step: o.step,
+            sim_s: o.step as f64 * mtanet_ipc::CONTROL_PERIOD_S,
+            driver: c
+                .and_then(|c| CommandSource::from_u32(c.source))
+                .map(CommandSource::name),
+            ratio: finite(c.map(|c| c.model_error_ratio)),
+            probe: finite(c.map(|c| c.probe)),
+            predictor_ms: c.map(|c| (c.compute_ns as f64 / 1e6) as f32),
+        })
+    }
+}
+
 fn progress(o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) -> String {
-    let Some(o) = o else {
+    let Some(v) = Latest::of(o, c) else {
         return format!("{:.0} s: waiting for the simulator", wall.as_secs_f64());
     };
-    let driver = c
-        .and_then(|c| CommandSource::from_u32(c.source))
-        .map_or("-", CommandSource::name);
-    let ratio = c.map(|c| c.model_error_ratio).filter(|v| v.is_finite());
-    let probe = c.map(|c| c.probe).filter(|v| v.is_finite());
     let fmt = |v: Option<f32>| v.map_or("-".into(), |v| format!("{v:.2}"));
-    let predictor_ms = c.map_or(0.0, |c| c.compute_ns as f64 / 1e6);
     format!(
-        "step {} ({:.0} s sim, {:.0} s wall) | laps {laps} | driver {driver} | model/copy-last {} | probe {} | predictor {predictor_ms:.2} ms",
-        o.step,
-        (o.step as f64) * mtanet_ipc::CONTROL_PERIOD_S,
+        "step {} ({:.0} s sim, {:.0} s wall) | laps {laps} | driver {} | model/copy-last {} | probe {} | predictor {:.2} ms",
+        v.step,
+        v.sim_s,
         wall.as_secs_f64(),
-        fmt(ratio),
-        fmt(probe),
+        v.driver.unwrap_or("-"),
+        fmt(v.ratio),
+        fmt(v.probe),
+        v.predictor_ms.unwrap_or(0.0),
     )
 }
