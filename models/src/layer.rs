@@ -189,6 +189,9 @@ impl PredLayer {
     pub fn inference_weights(&self) -> LayerWeights {
         tch::no_grad(|| {
             let mut lw = self.weights();
+            if self.device != tch::Device::Cpu {
+                return lw; // the packed form computes on the CPU only
+            }
             let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
             let w = &lw.w;
             let bias = Some(&self.units.bias);
