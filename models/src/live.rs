@@ -96,13 +96,14 @@ impl LiveModel {
     }
 
     /// The weights of `other`, decoded elsewhere (a loader thread), copied in place for the same
-    /// network: the recurrent state and statistics carry on. False (nothing changed) for another
-    /// network.
-    pub fn take_weights(&mut self, other: &LiveModel) -> bool {
+    /// network: the recurrent state and statistics carry on. The step weights `other` derived
+    /// on its thread are taken, not derived again here: packing them costs milliseconds, and
+    /// this runs on the control loop. False (nothing changed) for another network.
+    pub fn take_weights(&mut self, other: &mut LiveModel) -> bool {
         if other.config() != self.config() || self.vs.copy(&other.vs).is_err() {
             return false;
         }
-        self.weights = self.model.inference_weights();
+        std::mem::swap(&mut self.weights, &mut other.weights);
         self.version = other.version;
         true
     }
@@ -223,11 +224,11 @@ impl Imagined {
     }
 
     /// [`LiveModel::take_weights`] for the planner's copy.
-    pub fn take_weights(&mut self, other: &Imagined) -> bool {
+    pub fn take_weights(&mut self, other: &mut Imagined) -> bool {
         if other.model.config() != self.model.config() || self.vs.copy(&other.vs).is_err() {
             return false;
         }
-        self.weights = self.model.inference_weights();
+        std::mem::swap(&mut self.weights, &mut other.weights);
         true
     }
 
@@ -342,6 +343,37 @@ mod tests {
             m.version, 2,
             "a damaged checkpoint leaves the model as it was"
         );
+    }
+
+    #[test]
+    fn taken_weights_predict_as_the_model_they_came_from() {
+        let run = |m: &mut LiveModel| {
+            (0..4)
+                .map(|i| {
+                    m.observe_frame(&frame(0.2 + 0.1 * i as f32), [7.0, 9.0])
+                        .unwrap()
+                })
+                .collect::<Vec<f64>>()
+        };
+        let want = run(&mut LiveModel::from_bytes(&checkpoint(2), 2).unwrap());
+        let mut m = LiveModel::from_bytes(&checkpoint(1), 1).unwrap();
+        let mut fresh = LiveModel::from_bytes(&checkpoint(2), 2).unwrap();
+        assert!(m.take_weights(&mut fresh));
+        assert_eq!(m.version, 2);
+        assert_eq!(
+            run(&mut m),
+            want,
+            "the packed step weights came along with the values"
+        );
+        let mut other = LiveModel::from_bytes(
+            &Trainer::new(&ModelConfig::default(), &TrainConfig::default())
+                .checkpoint_bytes(None)
+                .unwrap(),
+            3,
+        )
+        .unwrap();
+        assert!(!m.take_weights(&mut other), "another network is refused");
+        assert_eq!(m.version, 2);
     }
 
     #[test]

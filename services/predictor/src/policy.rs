@@ -111,17 +111,17 @@ impl Policy {
     /// a millisecond, the recurrent state carries on), otherwise a new model and planner.
     pub fn install(&mut self, p: Prepared) -> anyhow::Result<()> {
         let Prepared {
-            model: fresh,
-            imagined,
+            model: mut fresh,
+            mut imagined,
             probe,
             ..
         } = p;
         let in_place =
-            self.planner.is_some() && self.model.as_mut().is_some_and(|m| m.take_weights(&fresh));
+            self.planner.is_some() && self.model.as_mut().is_some_and(|m| m.take_weights(&mut fresh));
         match self.planner.as_ref() {
             Some(planner) if in_place => {
                 planner.update(move |im| {
-                    if !im.take_weights(&imagined) {
+                    if !im.take_weights(&mut imagined) {
                         tracing::error!("the planner could not take the new weights");
                     }
                 })?;
