@@ -116,8 +116,11 @@ impl Policy {
             probe,
             ..
         } = p;
-        let in_place =
-            self.planner.is_some() && self.model.as_mut().is_some_and(|m| m.take_weights(&mut fresh));
+        let in_place = self.planner.is_some()
+            && self
+                .model
+                .as_mut()
+                .is_some_and(|m| m.take_weights(&mut fresh));
         match self.planner.as_ref() {
             Some(planner) if in_place => {
                 planner.update(move |im| {
