@@ -74,25 +74,43 @@ fn peak_rss_mib() -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
-/// The batch-1 step (carried state, inference weights) and the straightforward form's.
-fn step_batch1(cfg: &ModelConfig) -> (Row, Row) {
-    let _g = tch::no_grad_guard();
+/// A frozen network of `cfg` with its inference weights, a frame and an action (batch 1).
+struct Frozen {
+    _vs: nn::VarStore,
+    model: MtaPredNet,
+    w: mtanet_models::StepWeights,
+    frame: Tensor,
+    action: Tensor,
+}
+
+fn frozen(cfg: &ModelConfig) -> Frozen {
     let mut vs = nn::VarStore::new(Device::Cpu);
     let model = MtaPredNet::new(&vs.root(), cfg);
     vs.freeze();
     let w = model.inference_weights();
     let (h, wd, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
-    let frame = Tensor::rand([1, 1, h, wd], F);
-    let action = Tensor::rand([1, a], F) * 8.0;
+    Frozen {
+        _vs: vs,
+        model,
+        w,
+        frame: Tensor::rand([1, 1, h, wd], F),
+        action: Tensor::rand([1, a], F) * 8.0,
+    }
+}
+
+/// The batch-1 step (carried state, inference weights) and the straightforward form's.
+fn step_batch1(f: &Frozen) -> (Row, Row) {
+    let _g = tch::no_grad_guard();
+    let (model, w, frame, action) = (&f.model, &f.w, &f.frame, &f.action);
     let mut s = model.zero_state(1);
     let fast = measure(3000, || {
-        let (next, out) = model.f_step_with(&w, &s, &frame, &action).unwrap();
+        let (next, out) = model.f_step_with(w, &s, frame, action).unwrap();
         let _ = out.prediction.double_value(&[0, 0, 0, 0]);
         s = next;
     });
     let mut s = model.zero_state(1);
     let slow = measure(1000, || {
-        let (next, p) = reference::step(&model, &s, Some(&frame), &action);
+        let (next, p) = reference::step(model, &s, Some(frame), action);
         let _ = p.double_value(&[0, 0, 0, 0]);
         s = next;
     });
@@ -101,29 +119,25 @@ fn step_batch1(cfg: &ModelConfig) -> (Row, Row) {
 
 fn inference(cfg: &ModelConfig) {
     let _g = tch::no_grad_guard();
-    let mut vs = nn::VarStore::new(Device::Cpu);
-    let model = MtaPredNet::new(&vs.root(), cfg);
-    vs.freeze();
-    let w = model.inference_weights();
-    let (h, wd, a) = (cfg.image_height, cfg.image_width, cfg.action_dim);
-    let frame = Tensor::rand([1, 1, h, wd], F);
-    let action = Tensor::rand([1, a], F) * 8.0;
+    let f = frozen(cfg);
+    let (model, w, frame, action) = (&f.model, &f.w, &f.frame, &f.action);
+    let a = cfg.action_dim;
     let mut state = model.zero_state(1);
     for _ in 0..5 {
-        state = model.f_step_with(&w, &state, &frame, &action).unwrap().0;
+        state = model.f_step_with(w, &state, frame, action).unwrap().0;
     }
-    let (fast, slow) = step_batch1(cfg);
+    let (fast, slow) = step_batch1(&f);
     print("step, batch 1", &fast, Some(&slow));
     for (k, steps, iters) in [(16, 1, 1000), (64, 1, 500), (16, 15, 200), (32, 4, 300)] {
         let plans = Tensor::rand([k, steps, a], F) * 8.0;
         let fast = measure(iters, || {
-            let (p, _) = model.f_rollout(&w, &state, &plans).unwrap();
+            let (p, _) = model.f_rollout(w, &state, &plans).unwrap();
             let _ = p.double_value(&[0, 0, 0, 0, 0]);
         });
         let slow = measure(iters / 4 + 5, || {
             let mut s = state.expand(k);
             for i in 0..steps {
-                s = reference::step(&model, &s, None, &plans.select(1, i)).0;
+                s = reference::step(model, &s, None, &plans.select(1, i)).0;
             }
             let _ = s.layers[0].r.double_value(&[0, 0, 0, 0]);
         });
@@ -270,7 +284,7 @@ fn main() {
         "", "", "", "", "", "", "", ""
     );
     inference(&default);
-    let (script_step, script_step_ref) = step_batch1(&script);
+    let (script_step, script_step_ref) = step_batch1(&frozen(&script));
     print(
         "step, batch 1, 1/16/32",
         &script_step,
