@@ -355,9 +355,12 @@ mod tests {
                 })
                 .collect::<Vec<f64>>()
         };
-        let want = run(&mut LiveModel::from_bytes(&checkpoint(2), 2).unwrap());
-        let mut m = LiveModel::from_bytes(&checkpoint(1), 1).unwrap();
-        let mut fresh = LiveModel::from_bytes(&checkpoint(2), 2).unwrap();
+        // One set of bytes for both: the tests share libtorch's global generator, so two
+        // calls of `checkpoint(2)` running beside other tests need not draw the same weights.
+        let (one, two) = (checkpoint(1), checkpoint(2));
+        let want = run(&mut LiveModel::from_bytes(&two, 2).unwrap());
+        let mut m = LiveModel::from_bytes(&one, 1).unwrap();
+        let mut fresh = LiveModel::from_bytes(&two, 2).unwrap();
         assert!(m.take_weights(&mut fresh));
         assert_eq!(m.version, 2);
         assert_eq!(
