@@ -31,6 +31,23 @@ impl AgentModel for Toy {
     }
 }
 
+impl Toy {
+    fn new(skip: usize, health: Health) -> Self {
+        Self {
+            skip,
+            health,
+            observed: Vec::new(),
+        }
+    }
+}
+
+/// The health of a model that earned trust: well under copy-last, a good probe.
+const TRUSTED: Health = Health {
+    model_over_copy: Some(0.3),
+    model_steps: 10,
+    probe: Some(0.9),
+};
+
 /// Imagines the line where it is, whatever the plan: every plan sees the same frames.
 struct Still;
 
@@ -45,6 +62,14 @@ impl Imagination for Still {
             .map(|p| p.iter().flat_map(|_| line_frame(6.0, 0.0)).collect())
             .collect())
     }
+}
+
+/// The real planner, in line, over the [`Still`] imagination.
+fn still_planner() -> Inline<Still> {
+    Inline::new(
+        crate::Planner::new(&PlannerConfig::default()).unwrap(),
+        Still,
+    )
 }
 
 /// A planner that answers its first job (so active inference can take over) and no other; it
@@ -116,15 +141,8 @@ const CENTRED: [bool; 3] = [false, true, false];
 #[test]
 fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
     let frame = line_frame(6.0, 0.0);
-    let mut model = Toy {
-        skip: 3,
-        health: Health::default(),
-        observed: Vec::new(),
-    };
-    let mut plans = Inline::new(
-        crate::Planner::new(&PlannerConfig::default()).unwrap(),
-        Still,
-    );
+    let mut model = Toy::new(3, Health::default());
+    let mut plans = still_planner();
     let mut a = agent(&cfg());
     let mut applied = [0.0; 2];
     for _ in 0..30 {
@@ -148,11 +166,7 @@ fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
         [8.0, 8.0],
         "the mean command of its segment"
     );
-    model.health = Health {
-        model_over_copy: Some(0.3),
-        model_steps: 10,
-        probe: Some(0.9),
-    };
+    model.health = TRUSTED;
     // Trusted: the rule's command is held for one segment while the first plan is made from it.
     let mut arming = Vec::new();
     for _ in 0..3 {
@@ -195,20 +209,8 @@ fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
 #[test]
 fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
     let frame = line_frame(6.0, 0.0);
-    let trusted = Health {
-        model_over_copy: Some(0.3),
-        model_steps: 10,
-        probe: Some(0.9),
-    };
-    let mut model = Toy {
-        skip: 2,
-        health: trusted,
-        observed: Vec::new(),
-    };
-    let mut plans = Inline::new(
-        crate::Planner::new(&PlannerConfig::default()).unwrap(),
-        Still,
-    );
+    let mut model = Toy::new(2, TRUSTED);
+    let mut plans = still_planner();
     let mut a = agent(&cfg());
     for _ in 0..30 {
         a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
@@ -265,16 +267,7 @@ fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
 #[test]
 fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
     let frame = line_frame(6.0, 0.0);
-    let trusted = Health {
-        model_over_copy: Some(0.3),
-        model_steps: 10,
-        probe: Some(0.9),
-    };
-    let mut model = Toy {
-        skip: 2,
-        health: trusted,
-        observed: Vec::new(),
-    };
+    let mut model = Toy::new(2, TRUSTED);
     let mut a = agent(&cfg());
     let mut first_only = FirstOnly::default();
     let mut last = [0.0; 2];
@@ -303,17 +296,8 @@ fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
 #[test]
 fn a_new_episode_waits_for_a_plan_still_out_only_in_lockstep() {
     let frame = line_frame(6.0, 0.0);
-    let trusted = Health {
-        model_over_copy: Some(0.3),
-        model_steps: 10,
-        probe: Some(0.9),
-    };
     let longest = |lockstep: bool| {
-        let mut model = Toy {
-            skip: 2,
-            health: trusted,
-            observed: Vec::new(),
-        };
+        let mut model = Toy::new(2, TRUSTED);
         let mut a = agent(&cfg());
         let mut plans = FirstOnly::default();
         for i in 0..60 {

@@ -6,15 +6,7 @@ use super::*;
 #[test]
 fn active_inference_takes_over_only_with_a_first_plan_in_hand() {
     let frame = line_frame(6.0, 0.0);
-    let mut model = Toy {
-        skip: 2,
-        health: Health {
-            model_over_copy: Some(0.3),
-            model_steps: 10,
-            probe: Some(0.9),
-        },
-        observed: Vec::new(),
-    };
+    let mut model = Toy::new(2, TRUSTED);
     let mut a = agent(&cfg());
     // Real time, and the planner never done in time (a cold planner): the rule keeps driving,
     // trying again each time the planner is free.
@@ -40,20 +32,8 @@ fn active_inference_takes_over_only_with_a_first_plan_in_hand() {
 #[test]
 fn takes_over_only_with_the_car_on_the_line() {
     let frame = line_frame(6.0, 0.0);
-    let trusted = Health {
-        model_over_copy: Some(0.3),
-        model_steps: 10,
-        probe: Some(0.9),
-    };
-    let mut model = Toy {
-        skip: 1,
-        health: trusted,
-        observed: Vec::new(),
-    };
-    let mut plans = Inline::new(
-        crate::Planner::new(&PlannerConfig::default()).unwrap(),
-        Still,
-    );
+    let mut model = Toy::new(1, TRUSTED);
+    let mut plans = still_planner();
     let mut a = agent(&cfg());
     for _ in 0..10 {
         a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
@@ -89,19 +69,11 @@ fn takes_over_only_with_the_car_on_the_line() {
 fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
     let frame = line_frame(6.0, 0.0);
     let low_probe = Health {
-        model_over_copy: Some(0.3),
-        model_steps: 10,
         probe: Some(0.2),
+        ..TRUSTED
     };
-    let mut model = Toy {
-        skip: 1,
-        health: low_probe,
-        observed: Vec::new(),
-    };
-    let mut plans = Inline::new(
-        crate::Planner::new(&PlannerConfig::default()).unwrap(),
-        Still,
-    );
+    let mut model = Toy::new(1, low_probe);
+    let mut plans = still_planner();
     let mut a = agent(&cfg());
     for _ in 0..30 {
         a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
