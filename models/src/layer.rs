@@ -102,8 +102,20 @@ pub struct LayerWeights {
     w_no_e: Option<Tensor>,
     /// X_l when E_{l-1} = 0: maxpool(relu(conv(0))) = relu(bias), `[1, a, 1, 1]`.
     target_if_below_zero: Option<Tensor>,
+    /// The columns of `w` a candidate step uses apart: see [`CandidateColumns`].
+    cand: CandidateColumns,
     /// Every convolution of a step packed for small batches; only in inference weights.
     packed: Option<PackedLayer>,
+}
+
+/// `w` split for K candidates from one state: the top-down columns (`None` at the top), which
+/// differ per candidate, and the columns every candidate shares: E and h, or h alone after an
+/// imagined step.
+#[derive(Debug)]
+struct CandidateColumns {
+    up: Option<Tensor>,
+    fixed: Tensor,
+    h: Tensor,
 }
 
 /// A layer's convolutions as [`PackedConv`]s (see `packed_conv.rs` for why).
@@ -170,8 +182,14 @@ impl PredLayer {
         let w = self.units.fused();
         let e = 2 * self.a_channels;
         let cols = w.size()[1];
+        let h = w.narrow(1, e + self.above, self.units.units * self.channels);
         LayerWeights {
             packed: None,
+            cand: CandidateColumns {
+                up: (self.above > 0).then(|| w.narrow(1, e, self.above)),
+                fixed: Tensor::cat(&[&w.narrow(1, 0, e), &h], 1),
+                h,
+            },
             w_no_e: self
                 .input
                 .is_none()
@@ -192,16 +210,14 @@ impl PredLayer {
             if self.device != tch::Device::Cpu {
                 return lw; // the packed form computes on the CPU only
             }
-            let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
-            let w = &lw.w;
             let bias = Some(&self.units.bias);
-            let w_h = w.narrow(1, e + self.above, gc);
+            let c = &lw.cand;
             lw.packed = Some(PackedLayer {
-                units: PackedConv::new(w, bias),
+                units: PackedConv::new(&lw.w, bias),
                 units_no_e: lw.w_no_e.as_ref().map(|w| PackedConv::new(w, bias)),
-                up: (self.above > 0).then(|| PackedConv::new(&w.narrow(1, e, self.above), None)),
-                fixed: PackedConv::new(&Tensor::cat(&[&w.narrow(1, 0, e), &w_h], 1), bias),
-                h_only: PackedConv::new(&w_h, bias),
+                up: c.up.as_ref().map(|w| PackedConv::new(w, None)),
+                fixed: PackedConv::new(&c.fixed, bias),
+                h_only: PackedConv::new(&c.h, bias),
                 xhat: PackedConv::new(&self.xhat.ws, self.xhat.bs.as_ref()),
                 input: self
                     .input
@@ -315,17 +331,22 @@ impl PredLayer {
         };
         let h_flat = prev.h.flatten(1, 2);
         let up = self.up(r);
+        let bias = Some(&self.units.bias);
         // The shared columns at batch 1, the top-down ones at batch K: each packed if small.
         let shared = match lw.packed_for(h_flat.size()[0], &[&h_flat, &prev.e]) {
             Some(p) if e_zero => p.h_only.forward(&h_flat),
             Some(p) => p.fixed.forward(&Tensor::cat(&[&prev.e, &h_flat], 1)),
-            None => self.shared_gates(lw, prev, &h_flat, e_zero),
+            None if e_zero => self.units.gates(&h_flat, &lw.cand.h, bias),
+            None => {
+                let x = Tensor::cat(&[&prev.e, &h_flat], 1);
+                self.units.gates(&x, &lw.cand.fixed, bias)
+            }
         };
         let from_above = match lw.packed_for(up.size()[0], &[&up]) {
             Some(p) => p.up.as_ref().expect("a layer below the top").forward(&up),
             None => {
-                let w_up = lw.w.narrow(1, 2 * self.a_channels, self.above);
-                self.units.gates(&up, &w_up, None)
+                let w_up = lw.cand.up.as_ref().expect("a layer below the top");
+                self.units.gates(&up, w_up, None)
             }
         };
         let gates = from_above + shared;
@@ -334,27 +355,6 @@ impl PredLayer {
         let c = self.integrate(&prev.c, c_new);
         let r = Self::mix(&h, mix);
         (h, c, r)
-    }
-
-    /// The gates' columns that are the same for every candidate (E and h, with the bias),
-    /// with libtorch's convolution.
-    fn shared_gates(
-        &self,
-        lw: &LayerWeights,
-        prev: &LayerState,
-        h_flat: &Tensor,
-        e_zero: bool,
-    ) -> Tensor {
-        let (e, gc) = (2 * self.a_channels, self.units.units * self.channels);
-        let w_h = lw.w.narrow(1, e + self.above, gc);
-        let bias = Some(&self.units.bias);
-        if e_zero {
-            self.units.gates(h_flat, &w_h, bias)
-        } else {
-            let w_fixed = Tensor::cat(&[&lw.w.narrow(1, 0, e), &w_h], 1);
-            self.units
-                .gates(&Tensor::cat(&[&prev.e, h_flat], 1), &w_fixed, bias)
-        }
     }
 
     /// Leaky integration with tau: (1 - 1/tau) old + (1/tau) new, as one lerp.
