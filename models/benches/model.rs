@@ -323,28 +323,20 @@ fn main() {
                     "case", "script p50", "ours p50", "ours faster"
                 );
                 println!("|{:-<42}|{:->12}|{:->12}|{:->12}|", "", "", "", "");
-                let ours_ms = script_update.0[0];
-                println!(
-                    "| {:<40} | {:>10.3} | {:>10.3} | {:>10} |",
+                let row = |case: &str, script: f64, ours: f64| {
+                    let faster = format!("{:.2}x", script / ours);
+                    println!("| {case:<40} | {script:>10.1} | {ours:>10.1} | {faster:>10} |");
+                };
+                row(
                     "training update 16 x 20 (ms)",
                     update_s * 1e3,
-                    ours_ms,
-                    format!("{:.2}x", update_s * 1e3 / ours_ms)
+                    script_update.0[0],
                 );
-                let ours_us = script_step.0[0] * 1e3;
-                println!(
-                    "| {:<40} | {:>10.1} | {:>10.1} | {:>10} |",
-                    "step, batch 1 (us)",
-                    step_us,
-                    ours_us,
-                    format!("{:.2}x", step_us / ours_us)
-                );
-                println!(
-                    "| {:<40} | {:>10.1} | {:>10.1} | {:>10} |",
+                row("step, batch 1 (us)", step_us, script_step.0[0] * 1e3);
+                row(
                     "step, batch 1, p99 (us)",
                     step_p99_us,
                     script_step.0[1] * 1e3,
-                    format!("{:.2}x", step_p99_us / (script_step.0[1] * 1e3))
                 );
             }
             Err(e) => println!("\nthe PyTorch script could not be timed: {e}"),
