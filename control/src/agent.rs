@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use crate::cost::Cost;
 use crate::drive::{Drive, Wheels, mean_wheels};
-use crate::planner::Outcome;
+use crate::planner::{Outcome, PlanStats};
 use crate::preference::{FrameShape, PreferenceLearner};
 use crate::reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
 use crate::worker::PlanService;
@@ -57,7 +57,11 @@ pub struct Agent {
     distrust_steps: u64,
     /// A segment's model step and plan submission, done after its command went out.
     deferred: Option<Deferred>,
+    /// The latest tick's: lockstep plans have no deadline.
+    lockstep: bool,
     pub stats: AgentStats,
+    /// What the plans taken up could afford.
+    pub planning: PlanStats,
 }
 
 struct Deferred {
@@ -99,7 +103,9 @@ impl Agent {
             found_ticks: 0,
             distrust_steps: 0,
             deferred: None,
+            lockstep: false,
             stats: AgentStats::default(),
+            planning: PlanStats::default(),
         }
     }
 
@@ -146,6 +152,7 @@ impl Agent {
             }
             self.episode = Some(t.episode);
         }
+        self.lockstep = t.lockstep;
         self.applied.push(t.applied);
         self.preference.observe(t.frame, t.line);
         self.reactive.observe(t.line);
@@ -215,6 +222,13 @@ impl Agent {
                         tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
                         self.mode = Mode::ActiveInference;
                         self.stats.switches_to_active_inference += 1;
+                        let s = &mut self.stats;
+                        s.first_takeover_step.get_or_insert(
+                            s.reactive_steps
+                                + s.exploration_steps
+                                + s.active_inference_steps
+                                + s.fallback_steps,
+                        );
                         self.adopt(&p.0);
                         plan = Some(p);
                     }

@@ -24,7 +24,7 @@ pub use agent::{
 };
 pub use cost::{Cost, CostConfig, Terms};
 pub use drive::{Drive, Wheels};
-pub use planner::{Imagination, Outcome, Planner, PlannerConfig};
+pub use planner::{Imagination, Outcome, PlanStats, Planner, PlannerConfig, PlanningSummary};
 pub use preference::{FrameShape, PreferenceLearner, PreferredLine};
 pub use reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
 pub use worker::{Inline, PlanJob, PlanService, Threaded};

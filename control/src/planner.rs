@@ -1,10 +1,20 @@
-//! Receding-horizon planning by the cross-entropy method over piecewise-constant commands.
+//! Receding-horizon planning by the cross-entropy method over piecewise-constant commands, as an
+//! anytime algorithm.
 //!
 //! A plan is `horizon` segments, each a [`Drive`] held for one model step (`frame_skip` control
-//! steps). Each call samples candidates around the warm start (the previous plan shifted by one
-//! segment), adds a few fixed ones (the warm start itself, straight on, constant turns), has the
-//! imagination roll all of them out in one batch, scores the imagined frames by expected free
-//! energy ([`crate::cost`]), refits a Gaussian to the elites and repeats; the best plan seen wins.
+//! steps). Each call first scores the warm start (the previous plan shifted by one segment) with
+//! a few fixed candidates (straight on, constant turns), so it has a plan in hand; then CEM
+//! iterations sample candidates around the warm start, have the imagination roll each batch
+//! out, score the imagined frames by expected free energy ([`crate::cost`]) and refit a Gaussian
+//! to the elites; the best plan seen wins.
+//!
+//! With a deadline (real time) the planner sizes every batch from what rollouts have cost on
+//! this machine ([`budget::RolloutCost`]), runs the configured iterations only while they fit,
+//! and has the imagination give up a batch between two imagined steps once the deadline has
+//! passed: a slow or busy CPU plans less well, never late. Without one (lockstep, offline) the
+//! configured work always runs to the end, so plans are reproducible.
+
+use std::time::Instant;
 
 use anyhow::ensure;
 use rand::{Rng, SeedableRng};
@@ -13,6 +23,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::cost::{Cost, Terms};
 use crate::drive::{Drive, Wheels};
+
+pub mod budget;
+mod stats;
+pub use stats::{PlanStats, PlanningSummary};
 
 /// Rolls candidate plans out through a model of the world.
 pub trait Imagination {
@@ -25,6 +39,23 @@ pub trait Imagination {
     /// For each plan, the frame expected at the end of each of its segments, concatenated:
     /// `plans.len()` vectors of `segments x pixels` grey values.
     fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>>;
+    /// [`Imagination::imagine`], given up (`None`) when `deadline` has passed between two
+    /// imagined steps. The default rolls out to the end (an imagination that cannot stop
+    /// half-way; only the batch sizing then keeps the deadline).
+    fn imagine_until(
+        &mut self,
+        plans: &[Vec<Drive>],
+        deadline: Instant,
+    ) -> anyhow::Result<Option<Vec<Vec<f32>>>> {
+        let _ = deadline;
+        self.imagine(plans).map(Some)
+    }
+    /// Rolls a batch of each of `batch_sizes` out once, before plans with deadlines (a model's
+    /// first batch of a new size can cost several times a later one). Default: nothing to do.
+    fn warm_up(&mut self, batch_sizes: &[usize], horizon: usize) -> anyhow::Result<()> {
+        let _ = (batch_sizes, horizon);
+        Ok(())
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -32,10 +63,11 @@ pub trait Imagination {
 pub struct PlannerConfig {
     /// Segments per plan (each one model step of `frame_skip` control steps).
     pub horizon: usize,
-    /// Candidates per iteration (the fixed ones included).
+    /// Candidates per CEM iteration (the best plan so far included); with a deadline, at most.
     pub samples: usize,
     /// Best candidates the next iteration's Gaussian is fitted to.
     pub elites: usize,
+    /// CEM iterations after the warm start's batch; with a deadline, at most.
     pub iterations: usize,
     /// Forward speed bounds, rad/s.
     pub min_speed: f32,
@@ -66,21 +98,40 @@ impl Default for PlannerConfig {
     }
 }
 
-/// What one call of [`Planner::plan`] found.
+/// What one call of [`Planner::plan`] found and what it could afford.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Outcome {
     pub plan: Vec<Drive>,
-    pub terms: Terms,
+    /// The plan's expected free energy; `None` when the deadline came before any candidate was
+    /// scored (the plan is then the warm start, unscored).
+    pub terms: Option<Terms>,
     /// Candidate plans rolled out.
     pub evaluations: usize,
+    /// CEM iterations completed after the warm start's batch.
+    pub iterations: usize,
+    /// Fewest candidates in one of those iterations (0 if none ran).
+    pub candidates: usize,
+    /// The deadline stopped it short of the configured iterations or candidates.
+    pub cut: bool,
+    /// Wall time per candidate-segment of a rollout, as measured so far (seconds).
+    pub rollout_s_per_candidate_segment: Option<f64>,
 }
+
+/// Fewest candidates worth an iteration beyond the elites, and the step between the batch
+/// sizes a deadline may choose (few distinct shapes: see [`budget::RolloutCost::affordable`]).
+const MIN_EXTRA: usize = 2;
+const SIZE_STEP: usize = 8;
 
 pub struct Planner {
     cfg: PlannerConfig,
     rng: ChaCha8Rng,
     /// Warm start: the best plan of the last call, shifted by one segment.
     warm: Vec<Drive>,
+    rollout_cost: budget::RolloutCost,
 }
+
+/// One scored batch: (total cost, index, terms), best first.
+type Scored = Vec<(f32, usize, Terms)>;
 
 impl Planner {
     pub fn new(cfg: &PlannerConfig) -> anyhow::Result<Self> {
@@ -99,6 +150,7 @@ impl Planner {
             cfg: cfg.clone(),
             rng: ChaCha8Rng::seed_from_u64(cfg.seed),
             warm: Vec::new(),
+            rollout_cost: budget::RolloutCost::default(),
         };
         p.reset(Drive::new(cfg.min_speed.max(0.0), 0.0));
         Ok(p)
@@ -106,6 +158,20 @@ impl Planner {
 
     pub fn config(&self) -> &PlannerConfig {
         &self.cfg
+    }
+
+    /// Every batch size a plan may roll out: the warm start's, then those a deadline chooses
+    /// from (the configured one included).
+    pub fn batch_sizes(&self) -> Vec<usize> {
+        let fixed = self.fixed_candidates(&self.warm, self.warm[0]).len();
+        let min = (self.cfg.elites + MIN_EXTRA).min(self.cfg.samples);
+        let mut sizes: Vec<usize> = std::iter::once(fixed)
+            .chain((min..self.cfg.samples).step_by(SIZE_STEP))
+            .chain(std::iter::once(self.cfg.samples))
+            .collect();
+        sizes.sort_unstable();
+        sizes.dedup();
+        sizes
     }
 
     /// Forgets the warm start: the next plan starts from holding `drive`.
@@ -121,104 +187,168 @@ impl Planner {
         )
     }
 
-    /// Plans the segments after the committed one. `before` is the command in force when the
-    /// plan starts (the committed one), for the smoothness prior. Afterwards the warm start is
-    /// the best plan shifted by one segment.
+    /// Plans the segments after the committed one, by `deadline` if there is one. `before` is
+    /// the command in force when the plan starts (the committed one), for the smoothness prior.
+    /// Afterwards the warm start is the best plan shifted by one segment.
     pub fn plan<I: Imagination + ?Sized>(
         &mut self,
         imagination: &mut I,
         cost: &Cost,
         before: Drive,
+        deadline: Option<Instant>,
     ) -> anyhow::Result<Outcome> {
-        let (h, k) = (self.cfg.horizon, self.cfg.samples);
+        let (h, samples) = (self.cfg.horizon, self.cfg.samples);
         let mut mean = self.warm.clone();
         let mut std = vec![Drive::new(self.cfg.speed_std, self.cfg.turn_std); h];
-        let mut best: Option<(Vec<Drive>, Terms)> = None;
-        let mut evaluations = 0;
-        for it in 0..self.cfg.iterations {
-            let mut cands: Vec<Vec<Drive>> = Vec::with_capacity(k);
-            if it == 0 {
-                cands.extend(self.fixed_candidates(&mean, before));
-            } else if let Some((b, _)) = &best {
-                cands.push(b.clone());
+        let mut out = Outcome {
+            plan: self.warm.clone(),
+            terms: None,
+            evaluations: 0,
+            iterations: 0,
+            candidates: 0,
+            cut: false,
+            rollout_s_per_candidate_segment: None,
+        };
+        // The warm start and the fixed candidates first: from then on a plan is in hand.
+        let fixed = self.fixed_candidates(&mean, before);
+        match self.score(imagination, cost, before, &fixed, deadline)? {
+            Some(scored) => {
+                out.evaluations += fixed.len();
+                out.take_best(&fixed, &scored);
             }
-            while cands.len() < k {
-                let mut plan = Vec::with_capacity(h);
-                for s in 0..h {
-                    let (zs, zt) = (self.normal(), self.normal());
-                    plan.push(self.clamp(Drive::new(
-                        mean[s].speed + std[s].speed * zs,
-                        mean[s].turn + std[s].turn * zt,
-                    )));
+            None => out.cut = true,
+        }
+        let min = (self.cfg.elites + MIN_EXTRA).min(samples);
+        for _ in 0..self.cfg.iterations {
+            if out.cut {
+                break;
+            }
+            let k = match deadline {
+                None => samples,
+                Some(d) => {
+                    let left = d.saturating_duration_since(Instant::now());
+                    match self
+                        .rollout_cost
+                        .affordable(left, h, min, samples, SIZE_STEP)
+                    {
+                        Some(k) => k,
+                        None => {
+                            out.cut = true;
+                            break;
+                        }
+                    }
                 }
+            };
+            // The best plan so far competes again.
+            let mut cands: Vec<Vec<Drive>> = vec![out.plan.clone()];
+            while cands.len() < k {
+                let plan = (0..h)
+                    .map(|s| {
+                        let (zs, zt) = (self.normal(), self.normal());
+                        self.clamp(Drive::new(
+                            mean[s].speed + std[s].speed * zs,
+                            mean[s].turn + std[s].turn * zt,
+                        ))
+                    })
+                    .collect();
                 cands.push(plan);
             }
-            cands.truncate(k);
-            let frames = imagination.imagine(&cands)?;
+            let Some(scored) = self.score(imagination, cost, before, &cands, deadline)? else {
+                out.cut = true;
+                break;
+            };
+            out.evaluations += cands.len();
+            out.iterations += 1;
+            out.candidates = if out.iterations == 1 {
+                k
+            } else {
+                out.candidates.min(k)
+            };
+            out.take_best(&cands, &scored);
+            self.refit(&cands, &scored, &mut mean, &mut std);
+        }
+        out.cut |= out.iterations < self.cfg.iterations || out.candidates < samples;
+        if let Some(t) = out.terms {
             ensure!(
-                frames.len() == cands.len(),
-                "imagination returned {} rollouts for {} plans",
-                frames.len(),
-                cands.len()
+                t.total.is_finite(),
+                "every candidate plan had a non-finite cost: {t:?}"
             );
-            evaluations += cands.len();
-            let mut scored: Vec<(f32, usize, Terms)> = frames
-                .iter()
-                .zip(&cands)
-                .enumerate()
-                .map(|(i, (f, p))| {
-                    let t = cost.evaluate(f, p, before);
-                    // A NaN from a broken model must never win.
-                    (
-                        if t.total.is_finite() {
-                            t.total
-                        } else {
-                            f32::INFINITY
-                        },
-                        i,
-                        t,
-                    )
-                })
-                .collect();
-            scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let (top_cost, top, terms) = scored[0];
-            if best.as_ref().is_none_or(|(_, t)| top_cost < t.total) {
-                best = Some((cands[top].clone(), terms));
-            }
-            let elites: Vec<&Vec<Drive>> = scored
-                .iter()
-                .take(self.cfg.elites)
-                .map(|(_, i, _)| &cands[*i])
-                .collect();
-            for s in 0..h {
-                let n = elites.len() as f32;
-                let ms = elites.iter().map(|p| p[s].speed).sum::<f32>() / n;
-                let mt = elites.iter().map(|p| p[s].turn).sum::<f32>() / n;
-                let vs = elites
-                    .iter()
-                    .map(|p| (p[s].speed - ms).powi(2))
-                    .sum::<f32>()
-                    / n;
-                let vt = elites.iter().map(|p| (p[s].turn - mt).powi(2)).sum::<f32>() / n;
-                mean[s] = Drive::new(ms, mt);
-                // Keep some spread so later iterations still search.
-                std[s] = Drive::new(
-                    vs.sqrt().max(0.1 * self.cfg.speed_std),
-                    vt.sqrt().max(0.1 * self.cfg.turn_std),
-                );
-            }
         }
-        let (plan, terms) = best.expect("at least one iteration scores candidates");
-        if !terms.total.is_finite() {
-            anyhow::bail!("every candidate plan had a non-finite cost: {terms:?}");
+        out.rollout_s_per_candidate_segment = self.rollout_cost.per_unit();
+        self.warm = out.plan[1..].to_vec();
+        self.warm.push(*out.plan.last().expect("horizon >= 1"));
+        Ok(out)
+    }
+
+    /// Rolls `cands` out and scores them, best first; `None` if the deadline stopped the
+    /// rollout. Each finished rollout's wall time feeds the cost model.
+    fn score<I: Imagination + ?Sized>(
+        &mut self,
+        imagination: &mut I,
+        cost: &Cost,
+        before: Drive,
+        cands: &[Vec<Drive>],
+        deadline: Option<Instant>,
+    ) -> anyhow::Result<Option<Scored>> {
+        let t0 = Instant::now();
+        let frames = match deadline {
+            None => imagination.imagine(cands)?,
+            Some(d) => match imagination.imagine_until(cands, d)? {
+                Some(f) => f,
+                None => return Ok(None),
+            },
+        };
+        self.rollout_cost
+            .observe(cands.len() * self.cfg.horizon, t0.elapsed());
+        ensure!(
+            frames.len() == cands.len(),
+            "imagination returned {} rollouts for {} plans",
+            frames.len(),
+            cands.len()
+        );
+        let mut scored: Scored = frames
+            .iter()
+            .zip(cands)
+            .enumerate()
+            .map(|(i, (f, p))| {
+                let t = cost.evaluate(f, p, before);
+                // A NaN from a broken model must never win.
+                let total = if t.total.is_finite() {
+                    t.total
+                } else {
+                    f32::INFINITY
+                };
+                (total, i, t)
+            })
+            .collect();
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        Ok(Some(scored))
+    }
+
+    /// The next iteration's Gaussian, fitted to the elites.
+    fn refit(&self, cands: &[Vec<Drive>], scored: &Scored, mean: &mut [Drive], std: &mut [Drive]) {
+        let elites: Vec<&Vec<Drive>> = scored
+            .iter()
+            .take(self.cfg.elites)
+            .map(|(_, i, _)| &cands[*i])
+            .collect();
+        let n = elites.len() as f32;
+        for s in 0..mean.len() {
+            let ms = elites.iter().map(|p| p[s].speed).sum::<f32>() / n;
+            let mt = elites.iter().map(|p| p[s].turn).sum::<f32>() / n;
+            let vs = elites
+                .iter()
+                .map(|p| (p[s].speed - ms).powi(2))
+                .sum::<f32>()
+                / n;
+            let vt = elites.iter().map(|p| (p[s].turn - mt).powi(2)).sum::<f32>() / n;
+            mean[s] = Drive::new(ms, mt);
+            // Keep some spread so later iterations still search.
+            std[s] = Drive::new(
+                vs.sqrt().max(0.1 * self.cfg.speed_std),
+                vt.sqrt().max(0.1 * self.cfg.turn_std),
+            );
         }
-        self.warm = plan[1..].to_vec();
-        self.warm.push(*plan.last().expect("horizon >= 1"));
-        Ok(Outcome {
-            plan,
-            terms,
-            evaluations,
-        })
     }
 
     /// The warm start, and straight on and constant turns both ways at the speed in force.
@@ -240,77 +370,16 @@ impl Planner {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::cost::CostConfig;
-    use crate::preference::tests::{learnt, line_frame};
-
-    /// A toy world: the line's column moves by the turn each segment (a positive turn, to the
-    /// left, moves the line right in the image), from a start offset.
-    struct Toy {
-        start: f32,
-        offset: f32,
-    }
-
-    impl Imagination for Toy {
-        type Start = f32;
-        fn start(&mut self, from: f32, committed: Wheels) -> anyhow::Result<()> {
-            self.offset = from + 0.1 * Drive::from_wheels(committed).turn;
-            Ok(())
-        }
-        fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
-            Ok(plans
-                .iter()
-                .map(|p| {
-                    let mut off = self.offset;
-                    p.iter()
-                        .flat_map(|d| {
-                            off += 0.1 * d.turn;
-                            line_frame(6.0 + off, 0.0)
-                        })
-                        .collect()
-                })
-                .collect())
-        }
-    }
-
-    #[test]
-    fn steers_the_line_back_to_the_centre_and_keeps_moving() {
-        let cost = Cost::new(learnt(), CostConfig::default());
-        let mut planner = Planner::new(&PlannerConfig::default()).unwrap();
-        // Line 3 pixels left of the centre: turning left (positive turn) brings it back.
-        let mut toy = Toy {
-            start: -3.0,
-            offset: 0.0,
-        };
-        toy.start(toy.start, [8.0, 8.0]).unwrap();
-        let out = planner.plan(&mut toy, &cost, Drive::new(8.0, 0.0)).unwrap();
-        assert!(out.plan[0].turn > 2.0, "{out:?}");
-        assert!(
-            out.plan[0].speed > 5.0,
-            "the progress prior keeps it moving: {out:?}"
-        );
-        assert_eq!(out.evaluations, 96);
-        // Same seed, same inputs: the same plan.
-        let mut again = Planner::new(&PlannerConfig::default()).unwrap();
-        let out2 = again.plan(&mut toy, &cost, Drive::new(8.0, 0.0)).unwrap();
-        assert_eq!(out, out2);
-    }
-
-    #[test]
-    fn bad_configs_are_refused() {
-        for cfg in [
-            PlannerConfig {
-                horizon: 0,
-                ..Default::default()
-            },
-            PlannerConfig {
-                elites: 40,
-                ..Default::default()
-            },
-        ] {
-            assert!(Planner::new(&cfg).is_err());
+impl Outcome {
+    /// Keeps the batch's best if it beats the plan in hand (or nothing was scored yet).
+    fn take_best(&mut self, cands: &[Vec<Drive>], scored: &Scored) {
+        let (top_cost, top, terms) = scored[0];
+        if self.terms.is_none_or(|t| top_cost < t.total) {
+            self.plan = cands[top].clone();
+            self.terms = Some(terms);
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

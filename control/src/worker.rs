@@ -19,12 +19,19 @@ pub struct PlanJob<S> {
     pub cost: Cost,
     /// Forget the warm start and begin from holding this (a new episode, a switch to planning).
     pub restart: Option<Drive>,
+    /// When the plan was asked for: its compute time counts from here, not from when a worker
+    /// picked it up.
+    pub asked: Instant,
+    /// Real time: the plan must be done by then (see [`Planner::plan`]); `None`: the configured
+    /// work runs to the end (lockstep).
+    pub deadline: Option<Instant>,
 }
 
 pub struct PlanDone {
     /// The `segment` of the job; the plan's first segment is `segment + 1`.
     pub segment: u64,
     pub outcome: anyhow::Result<Outcome>,
+    /// From the moment the plan was asked for to its result.
     pub compute: Duration,
 }
 
@@ -43,18 +50,17 @@ fn run_job<I: Imagination>(
     imagination: &mut I,
     job: PlanJob<I::Start>,
 ) -> PlanDone {
-    let t0 = Instant::now();
     if let Some(d) = job.restart {
         planner.reset(d);
     }
     let before = Drive::from_wheels(job.committed);
     let outcome = imagination
         .start(job.start, job.committed)
-        .and_then(|()| planner.plan(imagination, &job.cost, before));
+        .and_then(|()| planner.plan(imagination, &job.cost, before, job.deadline));
     PlanDone {
         segment: job.segment,
         outcome,
-        compute: t0.elapsed(),
+        compute: job.asked.elapsed(),
     }
 }
 
@@ -122,6 +128,12 @@ where
             .name("planner".into())
             .spawn(move || {
                 init();
+                let t0 = Instant::now();
+                let sizes = planner.batch_sizes();
+                match imagination.warm_up(&sizes, planner.config().horizon) {
+                    Ok(()) => tracing::info!(?sizes, took = ?t0.elapsed(), "planner warmed up"),
+                    Err(e) => tracing::warn!("planner warm-up failed: {e:#}"),
+                }
                 for msg in jobs {
                     match msg {
                         ToWorker::Job(job) => {

@@ -4,6 +4,8 @@
 //! moves". [`Imagined`] is the same network rolling candidate plans out for the planner (a copy
 //! of its own, so planning can run on another thread).
 
+use std::time::Instant;
+
 use mtanet_control::{AgentModel, Drive, Health, Imagination, Wheels};
 use tch::{Kind, Tensor, nn::VarStore};
 
@@ -266,6 +268,40 @@ impl Imagination for Imagined {
     }
 
     fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
+        let done = self.rollout(plans, None)?;
+        Ok(done.expect("a rollout without a deadline runs to the end"))
+    }
+
+    fn imagine_until(
+        &mut self,
+        plans: &[Vec<Drive>],
+        deadline: Instant,
+    ) -> anyhow::Result<Option<Vec<Vec<f32>>>> {
+        self.rollout(plans, Some(deadline))
+    }
+
+    /// libtorch builds a convolution's work for each new input shape (tens of ms each here):
+    /// done once per batch size from an empty state. The cache is the process's, so later
+    /// weights and copies of the network find it.
+    fn warm_up(&mut self, batch_sizes: &[usize], horizon: usize) -> anyhow::Result<()> {
+        let kept = self.start.take();
+        self.start(self.model.zero_state(1), [0.0; 2])?;
+        for &k in batch_sizes {
+            self.rollout(&vec![vec![Drive::new(0.0, 0.0); horizon]; k], None)?;
+        }
+        self.start = kept;
+        Ok(())
+    }
+}
+
+impl Imagined {
+    /// All K plans in one batch, the first step's action-independent work done once; `None`
+    /// when `deadline` passed between two imagined steps.
+    fn rollout(
+        &mut self,
+        plans: &[Vec<Drive>],
+        deadline: Option<Instant>,
+    ) -> anyhow::Result<Option<Vec<Vec<f32>>>> {
         let _guard = tch::no_grad_guard();
         let start = self
             .start
@@ -278,13 +314,19 @@ impl Imagination for Imagined {
         );
         let flat: Vec<f32> = plans.iter().flatten().flat_map(|d| d.wheels()).collect();
         let actions = Tensor::from_slice(&flat).view([k, h, 2]);
-        // All K plans in one batch, the first step's action-independent work done once.
-        let (all, _) = self.model.f_rollout(&self.weights, start, &actions)?;
+        let Some((all, _)) =
+            self.model
+                .f_rollout_until(&self.weights, start, &actions, deadline)?
+        else {
+            return Ok(None);
+        };
         // [K, H, 1, rows, cols] -> one row of H frames per plan.
         let all = all.contiguous().view([k, -1]);
         let values = Vec::<f32>::try_from(all.flatten(0, -1))?;
         let per = values.len() / k.max(1) as usize;
-        Ok(values.chunks(per.max(1)).map(<[f32]>::to_vec).collect())
+        Ok(Some(
+            values.chunks(per.max(1)).map(<[f32]>::to_vec).collect(),
+        ))
     }
 }
 
@@ -437,5 +479,9 @@ mod tests {
         for (x, y) in alone.iter().zip(&batched[1]) {
             assert!((x - y).abs() < 1e-5, "{x} vs {y}");
         }
+        // With a deadline: the same frames when there is time, nothing once it has passed.
+        let later = Instant::now() + std::time::Duration::from_secs(60);
+        assert_eq!(im.imagine_until(&plans, later).unwrap(), Some(batched));
+        assert_eq!(im.imagine_until(&plans, Instant::now()).unwrap(), None);
     }
 }

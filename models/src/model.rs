@@ -172,6 +172,19 @@ impl MtaPredNet {
         start: &State,
         actions: &Tensor,
     ) -> Result<(Tensor, State), ModelError> {
+        let done = self.f_rollout_until(w, start, actions, None)?;
+        Ok(done.expect("a rollout without a deadline runs to the end"))
+    }
+
+    /// [`Self::f_rollout`], given up (`None`) when `deadline` has passed before an imagined
+    /// step: a plan in real time stops its batch there instead of overrunning its segment.
+    pub fn f_rollout_until(
+        &self,
+        w: &StepWeights,
+        start: &State,
+        actions: &Tensor,
+        deadline: Option<std::time::Instant>,
+    ) -> Result<Option<(Tensor, State)>, ModelError> {
         let b = self.check_state(start)?;
         let size = actions.size();
         let (k, h) = match size.as_slice() {
@@ -197,6 +210,9 @@ impl MtaPredNet {
         let mut state = start.shallow_clone();
         let mut predictions = Vec::with_capacity(h as usize);
         for s in 0..h {
+            if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                return Ok(None);
+            }
             let mix = at(s);
             let (next, out) = if s == 0 && b == 1 && k > 1 {
                 let (tops, rs) = self.top_down_candidates(w, &state, &mix);
@@ -207,7 +223,7 @@ impl MtaPredNet {
             predictions.push(out.prediction);
             state = next;
         }
-        Ok((Tensor::stack(&predictions, 1), state))
+        Ok(Some((Tensor::stack(&predictions, 1), state)))
     }
 
     /// A step from checked inputs: `frame` None imagines (the prediction is taken as seen).

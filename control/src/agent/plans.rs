@@ -1,7 +1,7 @@
 //! The agent's side of planning: taking up the plan made a segment ago (or the rest of the last
 //! one when it is late) and submitting the next.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::{Agent, AgentModel, Tick};
 use crate::drive::Drive;
@@ -49,6 +49,7 @@ impl Agent {
     /// Drives the plan's first segment now and keeps the rest for late plans.
     pub(super) fn adopt(&mut self, o: &Outcome) {
         self.stats.plans += 1;
+        self.planning.record(o);
         self.committed = o.plan[0].wheels();
         self.spare = o.plan[1..].iter().copied().collect();
     }
@@ -91,12 +92,26 @@ impl Agent {
         if !plans.idle() {
             return Ok(()); // still busy with a late plan: this segment goes without
         }
+        let asked = Instant::now();
+        let deadline = match model.frame_skip() {
+            Some(skip) if !self.lockstep => Some(asked + self.plan_budget(skip)),
+            _ => None,
+        };
         plans.submit(PlanJob {
             segment: self.segment,
             start: model.snapshot()?,
             committed: self.committed,
             cost,
             restart,
+            asked,
+            deadline,
         })
+    }
+
+    /// Real time: the wall time a plan may take, `plan_budget` of its segment (the rest is
+    /// slack for handing it over before the segment starts).
+    pub(super) fn plan_budget(&self, frame_skip: usize) -> Duration {
+        let segment_s = frame_skip as f64 * f64::from(self.control_period_s);
+        Duration::from_secs_f64((self.cfg.plan_budget * segment_s).max(0.0))
     }
 }

@@ -99,8 +99,12 @@ impl PlanService<f32> for FirstOnly {
             segment,
             outcome: Ok(Outcome {
                 plan,
-                terms: crate::cost::Terms::default(),
+                terms: Some(crate::cost::Terms::default()),
                 evaluations: 0,
+                iterations: 1,
+                candidates: 1,
+                cut: false,
+                rollout_s_per_candidate_segment: None,
             }),
             compute: Duration::ZERO,
         })

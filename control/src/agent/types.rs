@@ -55,6 +55,10 @@ pub struct AgentConfig {
     pub preference_capacity: usize,
     /// Seconds only the middle line sensor must have been on before a frame counts as centred.
     pub preference_steady_s: f32,
+    /// Real time: the share of its segment a plan may take, counted from when it is asked for
+    /// (the planner stops improving it then; see `planner.rs`). The rest of the segment is
+    /// slack for a busy machine to hand the plan over before it is needed.
+    pub plan_budget: f64,
     /// Real time: how long the first step of a segment waits for its plan before it counts as
     /// late (the previous plan's next segment is used). Lockstep waits up to `lockstep_wait_ms`.
     pub plan_wait_ms: f64,
@@ -78,6 +82,7 @@ impl Default for AgentConfig {
             preference_frames: 300,
             preference_capacity: 2000,
             preference_steady_s: 0.0,
+            plan_budget: 0.6,
             plan_wait_ms: 2.0,
             lockstep_wait_ms: 2000.0,
             cost: CostConfig::default(),
@@ -186,6 +191,8 @@ pub struct AgentStats {
     /// Switches to active inference, and back to the reactive rule because trust was lost.
     pub switches_to_active_inference: u64,
     pub switches_to_reactive: u64,
+    /// Control steps decided before active inference first took the wheel.
+    pub first_takeover_step: Option<u64>,
     /// Times the line was lost under active inference and the fallback took over.
     pub fallbacks: u64,
     pub plans: u64,

@@ -3,6 +3,7 @@
 mod canvas;
 mod evaluate;
 mod figures;
+mod load;
 mod pingpong;
 mod plot;
 mod record;

@@ -63,6 +63,9 @@ pub struct Report {
     pub track: PathBuf,
     pub lockstep: bool,
     pub control: serde_json::Value,
+    /// What the plans could afford in real time (iterations, candidates, the share cut by
+    /// their deadline, the cost reached); absent without a predictor.
+    pub planning: Option<mtanet_control::PlanningSummary>,
     pub laps: serde_json::Value,
     pub lateral_error_m: serde_json::Value,
     pub prediction: serde_json::Value,
@@ -133,7 +136,10 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
             "switches": c.switches,
             "fallbacks": c.fallbacks,
             "late_plans": pred.as_ref().map(|p| p.control.late_plans),
+            "first_takeover_s": pred.as_ref().and_then(|p| p.control.first_takeover_step)
+                .map(|s| s as f64 * mtanet_ipc::CONTROL_PERIOD_S),
         }),
+        planning: pred.as_ref().map(|p| p.planning),
         laps: serde_json::json!({
             "completed": sim.laps,
             "completed_under_active_inference": c.laps_completed_under_active_inference,

@@ -21,7 +21,11 @@ use mtanet_mta::supervisor::{Event, Supervisor};
 use serde::Serialize;
 use serde_json::{Value, json};
 
+use crate::load::{self, CpuHog, Machine};
 use crate::runcfg;
+
+mod table;
+use table::print_table;
 
 #[derive(Debug, clap::Args)]
 pub struct SoakArgs {
@@ -49,6 +53,13 @@ pub struct SoakArgs {
     /// Seconds of raw ping-pong before the stack starts.
     #[arg(long, default_value_t = 15.0)]
     pingpong_seconds: f64,
+    /// A CPU hog at normal priority on every core all through (`yes > /dev/null` each): what
+    /// a busy or slower machine leaves the stack.
+    #[arg(long)]
+    cpu_hog: bool,
+    /// Confine the whole run (stack and ping-pong) to these CPUs, e.g. `0` or `0-1`.
+    #[arg(long)]
+    cpus: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, Default, Serialize)]
@@ -76,6 +87,27 @@ fn lat(v: &Value) -> LatencySummary {
     serde_json::from_value(v.clone()).unwrap_or_default()
 }
 
+/// A process's scheduling class as `ps` shows it: "FIFO 20", or "OTHER nice 10".
+fn scheduling(pid: u32) -> String {
+    let pid = pid as libc::pid_t;
+    let mut param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: reads the policy and priority of another process (its main thread).
+    let (policy, ok) = unsafe {
+        (
+            libc::sched_getscheduler(pid),
+            libc::sched_getparam(pid, &mut param) == 0,
+        )
+    };
+    // SAFETY: getpriority(2) on a process id.
+    let nice = unsafe { libc::getpriority(libc::PRIO_PROCESS, pid as libc::id_t) };
+    match policy {
+        libc::SCHED_FIFO if ok => format!("FIFO {}", param.sched_priority),
+        libc::SCHED_OTHER => format!("OTHER nice {nice}"),
+        libc::SCHED_IDLE => "IDLE".into(),
+        p => format!("policy {p}"),
+    }
+}
+
 /// VmRSS (kB) and open file descriptors of a process.
 fn rss_and_fds(pid: u32) -> (u64, u64) {
     let rss = std::fs::read_to_string(format!("/proc/{pid}/status"))
@@ -93,6 +125,15 @@ fn rss_and_fds(pid: u32) -> (u64, u64) {
 }
 
 pub fn run(args: SoakArgs) -> anyhow::Result<()> {
+    // The load first: it is the machine everything below is measured on.
+    // SAFETY: sysconf(3) reads a constant of the system.
+    let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) }.max(1) as usize;
+    let hog = CpuHog::start(if args.cpu_hog { online } else { 0 })?;
+    if let Some(cpus) = &args.cpus {
+        load::confine(cpus)?;
+    }
+    let machine = Machine::here(hog.len());
+    eprintln!("[soak] {machine}");
     let out = args.out.clone();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mode = if args.lockstep {
@@ -104,11 +145,15 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     let file = ConfigFile::load(Some(&config))?;
     let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
     let track = args.track.clone().unwrap_or(scene.track);
-    if let Some(ck) = &args.checkpoint {
-        let probed = runcfg::probed_copy(ck, &file, &track, &out)?;
-        std::fs::create_dir_all(&ck_dir)?;
-        std::fs::copy(probed, ck_dir.join("latest.safetensors"))?;
-    }
+    let start_ck = match &args.checkpoint {
+        Some(ck) => {
+            let probed = runcfg::probed_copy(ck, &file, &track, &out)?;
+            std::fs::create_dir_all(&ck_dir)?;
+            std::fs::copy(&probed, ck_dir.join("latest.safetensors"))?;
+            Some(probed)
+        }
+        None => None,
+    };
     let ns = unique_namespace("soak");
     let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
     let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
@@ -143,14 +188,18 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         args.pingpong_seconds
     );
     let period = Duration::from_secs_f64(mtanet_ipc::CONTROL_PERIOD_S);
-    let never = std::sync::atomic::AtomicBool::new(false);
-    let (idle, _) = crate::pingpong::measure(
-        &ns,
-        period,
-        Duration::from_secs_f64(args.pingpong_seconds),
-        &never,
-        sim_prio,
-    )?;
+    // On a thread of its own: it takes the simulator's real-time class, which the processes
+    // started from this thread below would otherwise inherit.
+    let idle = std::thread::scope(|s| {
+        s.spawn(|| {
+            let never = std::sync::atomic::AtomicBool::new(false);
+            let alone = Duration::from_secs_f64(args.pingpong_seconds);
+            crate::pingpong::measure(&ns, period, alone, &never, sim_prio)
+        })
+        .join()
+        .map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))
+    })??
+    .0;
     // ...and all through the soak, beside the stack: the floor under the same load.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let pinger = {
@@ -178,6 +227,12 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         a.extend(spec.args.iter().cloned());
         match spec.binary.as_str() {
             "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
+            // Drives from the checkpoint at once, not after the trainer's first publish.
+            "mta-predictor" => {
+                if let Some(ck) = &start_ck {
+                    a.extend(["--checkpoint".into(), arg(ck)]);
+                }
+            }
             "mta-simulator" => a.extend([
                 "--track".into(),
                 arg(&track),
@@ -189,9 +244,11 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         sup.add(spec, a)?;
     }
     // Each one ready (READY=1) before the next, as `mta up` starts them.
+    let mut classes = BTreeMap::new();
     for spec in &stack.process {
-        sup.start(&spec.name)?;
+        let pid = sup.start(&spec.name)?;
         sup.await_ready(&spec.name, Duration::from_secs(60))?;
+        classes.insert(spec.name.clone(), scheduling(pid));
     }
     let bar = ProgressBar::new(steps).with_style(
         ProgressStyle::with_template("[soak] {msg} {bar:40} {elapsed}/{duration}")
@@ -248,6 +305,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         .map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))??;
     drop(peer);
     let ends = sup.stop_all(Duration::from_secs(60));
+    drop(hog);
     if let Some(f) = failure {
         bail!("{f}; logs in {}", out.display());
     }
@@ -294,7 +352,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         .iter()
         .map(|p| {
             let (a, b) = (first.get(&p.name).copied().unwrap_or_default(), last.get(&p.name).copied().unwrap_or_default());
-            (p.name.clone(), json!({ "rss_kb": { "start": a.0, "end": b.0 }, "fds": { "start": a.1, "end": b.1 } }))
+            (p.name.clone(), json!({ "scheduling": classes.get(&p.name), "rss_kb": { "start": a.0, "end": b.0 }, "fds": { "start": a.1, "end": b.1 } }))
         })
         .collect();
     let soak = json!({
@@ -311,6 +369,12 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         "replay": { "chunks_sent": n(&sim["replay_chunks_sent"]), "chunks_received": n(&tr["chunks_received"]), "dropped_chunks": n(&tr["chunks_lost"]) },
         "raw_pingpong_lost": pingpong_lost,
         "control": pred["control"],
+        "active_inference_share": n(&pred["control"]["active_inference_steps"]) as f64 / n(&sim["steps"]).max(1) as f64,
+        "first_takeover_s": pred["control"]["first_takeover_step"].as_u64().map(|s| s as f64 * mtanet_ipc::CONTROL_PERIOD_S),
+        "late_plans": n(&pred["control"]["late_plans"]),
+        "fallbacks": n(&pred["control"]["fallbacks"]),
+        "planning": pred["planning"],
+        "machine": machine,
         "trainer_updates": n(&tr["session_updates"]),
         "processes": per_process,
         "restarts": sup.restarts(),
@@ -340,71 +404,4 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         bail!("the stack left iceoryx2 resources behind: {leftovers:?}");
     }
     Ok(())
-}
-
-fn print_table(soak: &Value, raw: &LatencySummary) {
-    println!(
-        "soak: {} {} steps ({} min)",
-        soak["mode"], soak["steps"], soak["minutes"]
-    );
-    println!(
-        "| {:<18} | {:>9} | {:>9} | {:>9} | {:>9} | {:>9} |",
-        "latency (us)", "p50", "p90", "p99", "p99.9", "max"
-    );
-    println!(
-        "|{:-<20}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|",
-        "", "", "", "", "", ""
-    );
-    for k in [
-        "raw_pingpong_idle",
-        "raw_pingpong",
-        "round_trip",
-        "obs_to_predictor",
-        "predictor",
-        "cmd_to_sim",
-        "step",
-        "plan",
-    ] {
-        let p = &soak["latency_us"][k];
-        let f = |q: &str| p[q].as_f64().unwrap_or(f64::NAN);
-        println!(
-            "| {k:<18} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} | {:>9.1} |",
-            f("p50"),
-            f("p90"),
-            f("p99"),
-            f("p999"),
-            f("max")
-        );
-    }
-    let l = &soak["latency_us"];
-    let transport = l["round_trip"]["p50"].as_f64().unwrap_or(f64::NAN)
-        - l["predictor"]["p50"].as_f64().unwrap_or(0.0);
-    let ratio = transport / raw.p50_us.max(1e-9);
-    let check = |ok: bool| if ok { "met" } else { "NOT met" };
-    let pred_p99 = l["predictor"]["p99"].as_f64().unwrap_or(f64::NAN);
-    let step_p999 = l["step"]["p999"].as_f64().unwrap_or(f64::NAN);
-    println!(
-        "targets: predictor p99 {:.0} us <= 1000: {}; step p99.9 {:.0} us <= 3000: {}; transport p50 {:.1} us = {:.2} x raw ping-pong <= 1.2: {}",
-        pred_p99,
-        check(pred_p99 <= 1000.0),
-        step_p999,
-        check(step_p999 <= 3000.0),
-        transport,
-        ratio,
-        check(ratio <= 1.2)
-    );
-    println!(
-        "deadline misses {}, late commands {}, dropped commands {}, dropped replay chunks {}, tick jitter p99 {:.0} us",
-        soak["deadline_misses"],
-        soak["late_commands"],
-        soak["dropped_commands"],
-        soak["replay"]["dropped_chunks"],
-        soak["tick_jitter_us"]["p99"].as_f64().unwrap_or(f64::NAN)
-    );
-    for (name, p) in soak["processes"].as_object().into_iter().flatten() {
-        println!(
-            "{name}: rss {} -> {} kB, fds {} -> {}",
-            p["rss_kb"]["start"], p["rss_kb"]["end"], p["fds"]["start"], p["fds"]["end"]
-        );
-    }
 }

@@ -157,18 +157,21 @@ impl Supervisor {
             .env("NOTIFY_SOCKET", notify.path())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
-        if let Some(prio) = c.spec.realtime_priority {
-            // SAFETY: sched_setscheduler(2) is async-signal-safe; it only changes this child.
-            // A refusal (no privilege) is checked and reported from the parent below.
-            unsafe {
-                cmd.pre_exec(move || {
-                    let param = libc::sched_param {
-                        sched_priority: prio,
-                    };
-                    libc::sched_setscheduler(0, libc::SCHED_FIFO, &param);
-                    Ok(())
-                });
-            }
+        // Each child gets exactly the class of its spec, never the one of the thread that
+        // starts it (a real-time caller would make the trainer real-time too).
+        let prio = c.spec.realtime_priority;
+        // SAFETY: sched_setscheduler(2) is async-signal-safe; it only changes this child.
+        // A refusal (no privilege) is checked and reported from the parent below.
+        unsafe {
+            cmd.pre_exec(move || {
+                let (policy, p) = match prio {
+                    Some(p) => (libc::SCHED_FIFO, p),
+                    None => (libc::SCHED_OTHER, 0),
+                };
+                let param = libc::sched_param { sched_priority: p };
+                libc::sched_setscheduler(0, policy, &param);
+                Ok(())
+            });
         }
         let mut child = cmd.spawn().with_context(|| {
             format!(

@@ -169,8 +169,9 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         a.extend(spec.args.iter().cloned());
         match spec.binary.as_str() {
             "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
+            // Drives from the checkpoint at once, not after the trainer's first publish.
             "mta-predictor" => {
-                if let (true, Some(ck)) = (args.no_learning, &start_ck) {
+                if let Some(ck) = &start_ck {
                     a.extend(["--checkpoint".into(), arg(ck)]);
                 }
             }

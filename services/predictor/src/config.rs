@@ -11,8 +11,12 @@ pub struct PredictorConfig {
     /// libtorch intra-op threads. One: on these tiny tensors dispatch dominates, and a second
     /// thread collapses throughput when another process holds the other core.
     pub torch_threads: i32,
-    /// Niceness of the planner's thread: a plan has a whole segment (100 ms) of wall time,
-    /// while the control loop (and the simulator it answers) must wake at once.
+    /// SCHED_FIFO priority of the planner's thread when the control loop runs real-time
+    /// (always below the loop's): plans come before the trainer and every other normal
+    /// program, never before a command (docs/measurements.md, "Sharing the CPU"). 0: the
+    /// normal scheduler at `planner_nice`, as without the privilege.
+    pub planner_priority: i32,
+    /// Niceness of the weights loader's thread, and of the planner's on the normal scheduler.
     pub planner_nice: i32,
     /// `[predictor.reactive]`: the line-sensor rule before the model is trusted, and fallback.
     pub reactive: ReactiveConfig,
@@ -28,6 +32,7 @@ impl Default for PredictorConfig {
         Self {
             log_every_s: 5.0,
             torch_threads: 1,
+            planner_priority: 10,
             planner_nice: 5,
             reactive: ReactiveConfig::default(),
             exploration: ExplorationConfig::default(),

@@ -4,7 +4,8 @@
 
 use anyhow::ensure;
 use mtanet_control::{
-    Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, Threaded, Tick,
+    Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, PlanningSummary,
+    Threaded, Tick,
 };
 use mtanet_ipc::{
     ACTION_DIM, CONTROL_PERIOD_S, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation,
@@ -64,6 +65,11 @@ impl Policy {
 
     pub fn stats(&self) -> AgentStats {
         self.agent.stats
+    }
+
+    /// What the plans taken up so far could afford.
+    pub fn planning(&self) -> PlanningSummary {
+        self.agent.planning.summary()
     }
 
     /// Decides the command for this observation.
@@ -132,10 +138,12 @@ impl Policy {
             _ => {
                 // First weights, or another network: a new model and planner.
                 let planner = Planner::new(&self.cfg.active_inference.planner)?;
-                let (threads, nice) = (self.cfg.torch_threads, self.cfg.planner_nice);
+                let cfg = &self.cfg;
+                let (threads, prio, nice) =
+                    (cfg.torch_threads, cfg.planner_priority, cfg.planner_nice);
                 self.planner = Some(Threaded::spawn(planner, imagined, move || {
                     tch::set_num_threads(threads);
-                    background_priority(nice, "planner");
+                    planner_priority(prio, nice);
                 })?);
                 self.model = Some(fresh);
             }
@@ -171,6 +179,39 @@ pub fn prepare(bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<Prepare
         probe: probe.is_finite().then_some(f64::from(probe)),
         decode_ms: t0.elapsed().as_secs_f64() * 1e3,
     })
+}
+
+/// The planner's thread: SCHED_FIFO at `priority` when it was made by a real-time thread (the
+/// control loop), kept below that thread's priority; otherwise, or if refused, the normal
+/// scheduler at `nice` ([`background_priority`]).
+pub fn planner_priority(priority: i32, nice: i32) {
+    // SAFETY: sched_getscheduler(2) and sched_getparam(2) on the calling thread only.
+    let mut inherited = libc::sched_param { sched_priority: 0 };
+    let realtime = unsafe {
+        libc::sched_getscheduler(0) == libc::SCHED_FIFO
+            && libc::sched_getparam(0, &mut inherited) == 0
+    };
+    if priority > 0 && realtime {
+        let param = libc::sched_param {
+            sched_priority: priority.min(inherited.sched_priority - 1).max(1),
+        };
+        // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only; lowering a
+        // real-time priority needs no privilege.
+        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
+            tracing::info!(
+                priority = param.sched_priority,
+                "planner thread: SCHED_FIFO"
+            );
+            return;
+        }
+    }
+    if priority > 0 {
+        tracing::info!(
+            nice,
+            "the control loop is not real-time: nor is the planner"
+        );
+    }
+    background_priority(nice, "planner");
 }
 
 /// For a thread doing long work inside a real-time predictor (planner, weights loader): back to

@@ -4,7 +4,7 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use mtanet_control::AgentStats;
+use mtanet_control::{AgentStats, PlanningSummary};
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
@@ -50,6 +50,9 @@ pub struct Summary {
     pub model_version: u64,
     /// Who drove, switches, fallbacks, plans (late ones included).
     pub control: AgentStats,
+    /// What the plans could afford in their time: iterations, candidates, the share cut.
+    #[serde(default)]
+    pub planning: PlanningSummary,
     /// Recent next-frame MSE of the model and of copying the last frame (the bar to beat).
     pub model_mse: Option<f64>,
     pub copy_last_mse: Option<f64>,
@@ -96,7 +99,7 @@ pub fn run_with(
 ) -> anyhow::Result<Summary> {
     let waitset = create_waitset()?;
     let obs_guard = waitset.attach_notification(ports.observations.listener())?;
-    let weights_guard = waitset.attach_notification(ports.weights.listener())?;
+    let _weights_guard = waitset.attach_notification(ports.weights.listener())?;
     let mut summary = Summary::default();
     let mut stats = StepStats::default();
     let mut expected_step: Option<u64> = None;
@@ -117,9 +120,8 @@ pub fn run_with(
                     &mut expected_step,
                     &mut stats,
                 )
-            } else if id.has_event_from(&weights_guard) {
-                receive_weights(ports, &loader, &mut summary)
             } else {
+                // Weights are taken in after the wait: their event only wakes the loop.
                 Ok(())
             };
             match result {
@@ -132,6 +134,11 @@ pub fn run_with(
         };
         // The timeout bounds how long a signal waits to be noticed.
         waitset.wait_and_process_once_with_timeout(&mut on_event, Duration::from_millis(100))?;
+        if failure.is_none() {
+            // Also without an event: a notification sent before this listener existed (the
+            // trainer serving a new subscriber) is lost, the weights are not.
+            receive_weights(ports, &loader, &mut summary)?;
+        }
         install_weights(&loader, &mut policy, &mut summary)?;
         watchdog.pet();
         ports.stats.borrow_mut().tick(
@@ -160,6 +167,7 @@ pub fn run_with(
                 probe = ?policy.model.as_ref().and_then(|m| m.probe),
                 compute = %stats.compute.summary(),
                 plan = %stats.plan.summary(),
+                planning = %policy.planning(),
                 "running"
             );
         }
@@ -173,6 +181,7 @@ pub fn run_with(
         summary.probe = m.probe;
     }
     summary.control = policy.stats();
+    summary.planning = policy.planning();
     summary.observation_age = stats.age.summary();
     summary.compute = stats.compute.summary();
     summary.plan = stats.plan.summary();

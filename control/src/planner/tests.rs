@@ -1,0 +1,171 @@
+use std::time::Duration;
+
+use super::*;
+use crate::cost::CostConfig;
+use crate::preference::tests::{learnt, line_frame};
+
+/// A toy world: the line's column moves by the turn each segment (a positive turn, to the left,
+/// moves the line right in the image), from a start offset. Each imagined step of a batch costs
+/// `per_candidate_step` per candidate, like a model's batched rollout.
+struct Toy {
+    offset: f32,
+    per_candidate_step: Duration,
+}
+
+impl Toy {
+    fn new(start: f32, per_candidate_step: Duration) -> Self {
+        let mut toy = Self {
+            offset: 0.0,
+            per_candidate_step,
+        };
+        toy.start(start, [8.0, 8.0]).unwrap();
+        toy
+    }
+
+    fn rollout(&self, plans: &[Vec<Drive>], deadline: Option<Instant>) -> Option<Vec<Vec<f32>>> {
+        let h = plans.first().map_or(0, Vec::len);
+        let mut offsets = vec![self.offset; plans.len()];
+        let mut frames = vec![Vec::new(); plans.len()];
+        for s in 0..h {
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                return None;
+            }
+            // Stands in for the model's compute of one imagined step of the whole batch.
+            std::thread::sleep(self.per_candidate_step * plans.len() as u32);
+            for (i, p) in plans.iter().enumerate() {
+                offsets[i] += 0.1 * p[s].turn;
+                frames[i].extend(line_frame(6.0 + offsets[i], 0.0));
+            }
+        }
+        Some(frames)
+    }
+}
+
+impl Imagination for Toy {
+    type Start = f32;
+    fn start(&mut self, from: f32, committed: Wheels) -> anyhow::Result<()> {
+        self.offset = from + 0.1 * Drive::from_wheels(committed).turn;
+        Ok(())
+    }
+    fn imagine(&mut self, plans: &[Vec<Drive>]) -> anyhow::Result<Vec<Vec<f32>>> {
+        Ok(self.rollout(plans, None).expect("no deadline"))
+    }
+    fn imagine_until(
+        &mut self,
+        plans: &[Vec<Drive>],
+        deadline: Instant,
+    ) -> anyhow::Result<Option<Vec<Vec<f32>>>> {
+        Ok(self.rollout(plans, Some(deadline)))
+    }
+}
+
+fn cost() -> Cost {
+    Cost::new(learnt(), CostConfig::default())
+}
+
+#[test]
+fn steers_the_line_back_to_the_centre_and_keeps_moving() {
+    let mut planner = Planner::new(&PlannerConfig::default()).unwrap();
+    assert_eq!(planner.batch_sizes(), vec![6, 8, 16, 24, 32]);
+    // Line 3 pixels left of the centre: turning left (positive turn) brings it back.
+    let mut toy = Toy::new(-3.0, Duration::ZERO);
+    let out = planner
+        .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), None)
+        .unwrap();
+    assert!(out.plan[0].turn > 2.0, "{out:?}");
+    assert!(
+        out.plan[0].speed > 5.0,
+        "the progress prior keeps it moving: {out:?}"
+    );
+    // Without a deadline the configured work runs to the end: the warm start's batch of 6,
+    // then 3 iterations of 32.
+    assert_eq!(
+        (out.evaluations, out.iterations, out.candidates, out.cut),
+        (6 + 3 * 32, 3, 32, false)
+    );
+    // Same seed, same inputs: the same plan.
+    let mut again = Planner::new(&PlannerConfig::default()).unwrap();
+    let out2 = again
+        .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), None)
+        .unwrap();
+    assert_eq!((&out.plan, out.terms), (&out2.plan, out2.terms));
+}
+
+/// A model whose full plan takes ~4x its deadline: the plan comes by the deadline (within one
+/// imagined step of a batch), improved as far as the time allowed, and says it was cut.
+#[test]
+fn a_slow_imagination_plans_less_never_late() {
+    let per = Duration::from_micros(200);
+    let cfg = PlannerConfig::default();
+    // The full work: (6 + 3 x 32) candidates x 4 steps x 0.2 ms = ~82 ms.
+    let budget = Duration::from_millis(20);
+    let mut planner = Planner::new(&cfg).unwrap();
+    let mut toy = Toy::new(-3.0, per);
+    let mut iterations = Vec::new();
+    for _ in 0..5 {
+        toy.start(-3.0, [8.0, 8.0]).unwrap();
+        let t0 = Instant::now();
+        let out = planner
+            .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), Some(t0 + budget))
+            .unwrap();
+        let took = t0.elapsed();
+        // One imagined step of the largest batch (32 x 0.2 ms) may finish after the deadline;
+        // the rest of the slack is the test machine's scheduling.
+        assert!(
+            took <= budget + per * 32 + Duration::from_millis(15),
+            "{took:?}"
+        );
+        assert!(out.cut && out.terms.is_some(), "{out:?}");
+        assert!(
+            out.plan[0].turn > 0.0,
+            "still steers towards the line: {out:?}"
+        );
+        iterations.push(out.iterations);
+    }
+    // Once it has measured its rollouts it sizes them to fit: at least one CEM iteration.
+    assert!(iterations[1..].iter().all(|&i| i >= 1), "{iterations:?}");
+}
+
+#[test]
+fn a_deadline_already_past_drives_the_warm_start_unscored() {
+    let mut planner = Planner::new(&PlannerConfig::default()).unwrap();
+    let mut toy = Toy::new(-3.0, Duration::ZERO);
+    let first = planner
+        .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), None)
+        .unwrap();
+    let out = planner
+        .plan(
+            &mut toy,
+            &cost(),
+            Drive::new(8.0, 0.0),
+            Some(Instant::now()),
+        )
+        .unwrap();
+    let mut shifted = first.plan[1..].to_vec();
+    shifted.push(*first.plan.last().unwrap());
+    assert_eq!(out.plan, shifted, "the previous plan, shifted by a segment");
+    assert_eq!(
+        (out.terms, out.evaluations, out.iterations, out.cut),
+        (None, 0, 0, true)
+    );
+}
+
+#[test]
+fn bad_configs_are_refused() {
+    for cfg in [
+        PlannerConfig {
+            horizon: 0,
+            ..Default::default()
+        },
+        PlannerConfig {
+            elites: 40,
+            ..Default::default()
+        },
+        PlannerConfig {
+            iterations: 0,
+            ..Default::default()
+        },
+    ] {
+        assert!(Planner::new(&cfg).is_err());
+    }
+}
