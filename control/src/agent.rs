@@ -265,6 +265,13 @@ impl Agent {
                 let w = self.reactive.act(t.line);
                 self.decided(w, Driver::Fallback, None)
             }
+            // Weights fit for control (a passing probe: a checkpoint, or a model learnt online,
+            // by when the preference is long there) wait only for the preference, which learns
+            // from centred frames: no exploration segments, which take the car off the line.
+            Mode::Reactive if self.cost.is_none() && self.fit_for_control(&model.health()) => {
+                let w = self.reactive.act(t.line);
+                self.decided(w, Driver::Reactive, None)
+            }
             Mode::Reactive => {
                 let (w, exploring) = self.explorer.act(self.reactive.act(t.line));
                 let d = if exploring {
@@ -334,9 +341,14 @@ impl Agent {
     }
 
     fn trusted(&self, h: &Health) -> bool {
-        self.cfg.enabled
+        self.fit_for_control(h)
             && h.model_steps >= self.cfg.trust_after_steps
             && h.model_over_copy.is_some_and(|r| r <= self.cfg.trust_ratio)
+    }
+
+    /// Weights whose probe passes: fit to plan with, once their error is seen to be low.
+    fn fit_for_control(&self, h: &Health) -> bool {
+        self.cfg.enabled
             && (self.cfg.min_probe <= -1.0 || h.probe.is_some_and(|p| p >= self.cfg.min_probe))
     }
 
@@ -353,6 +365,9 @@ impl Agent {
         self.cost_age += 1;
         if self.cost.is_none() || self.cost_age >= 50 {
             if let Some(p) = self.preference.preferred(self.cfg.preference_frames) {
+                if self.cost.is_none() {
+                    tracing::info!(centred_frames = p.frames, "preference learnt");
+                }
                 self.cost = Some(Cost::new(p, self.cfg.cost.clone()));
                 self.cost_age = 0;
             }

@@ -35,6 +35,18 @@ fn rendered_units_pass_systemd_analyze_verify() {
     .iter()
     .map(|u| dir.path().join(u).to_string_lossy().into_owned())
     .collect();
+    // The scheduling `mta up` gives: the 50 Hz path real-time, the trainer normal and niced.
+    let read = |u: &str| std::fs::read_to_string(dir.path().join(u)).unwrap();
+    let predictor = read("mtanet-predictor.service");
+    assert!(
+        predictor.contains("CPUSchedulingPolicy=fifo\nCPUSchedulingPriority=20"),
+        "{predictor}"
+    );
+    let trainer = read("mtanet-trainer.service");
+    assert!(
+        trainer.contains("CPUSchedulingPolicy=other\nNice=10"),
+        "{trainer}"
+    );
     let verify = Command::new("systemd-analyze")
         .arg("verify")
         .args(&units)

@@ -91,6 +91,18 @@ impl Default for AgentConfig {
     }
 }
 
+impl AgentConfig {
+    /// Refuses values that cannot work, naming the key.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.plan_budget > 0.0 && self.plan_budget <= 1.0,
+            "predictor.active_inference.plan_budget must be in (0, 1] (a share of the segment), not {}",
+            self.plan_budget
+        );
+        Ok(())
+    }
+}
+
 /// One control step's input.
 #[derive(Debug, Clone, Copy)]
 pub struct Tick<'a> {

@@ -61,7 +61,11 @@ pub fn effective_config(
     // Every section, as the services will read it: a typo fails here, naming file and key.
     let file = ConfigFile::load(Some(&path))?;
     let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
-    let _: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
+    let predictor: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
+    predictor
+        .active_inference
+        .validate()
+        .map_err(|e| file.invalid("[predictor.active_inference]", e.to_string()))?;
     let _: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
     let stack: StackConfig = file.section("stack")?;
     stack.validate().map_err(|e| file.invalid("[stack]", e))?;

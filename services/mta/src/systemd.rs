@@ -28,6 +28,7 @@ pub struct SystemdArgs {
 fn unit(
     spec: &ProcessSpec,
     after: Option<&ProcessSpec>,
+    nice: Option<i32>,
     bin: &str,
     config: &str,
     user: &str,
@@ -62,12 +63,25 @@ fn unit(
         exec.push_str(a);
     }
     let _ = writeln!(u, "ExecStart={exec}\nWatchdogSec={}", spec.watchdog_s);
-    if let Some(prio) = spec.realtime_priority {
-        let _ = writeln!(
-            u,
-            "# On the 50 Hz path: real-time scheduling (its planner thread drops back to normal)."
-        );
-        let _ = writeln!(u, "CPUSchedulingPolicy=fifo\nCPUSchedulingPriority={prio}");
+    // The classes `mta up` gives (docs/measurements.md, "Sharing the CPU").
+    match spec.realtime_priority {
+        Some(prio) => {
+            let _ = writeln!(
+                u,
+                "# On the 50 Hz path: real-time scheduling. The predictor's planner thread runs\n# SCHED_FIFO below it ([predictor] planner_priority): plans before any normal program."
+            );
+            let _ = writeln!(u, "CPUSchedulingPolicy=fifo\nCPUSchedulingPriority={prio}");
+        }
+        None => {
+            let _ = writeln!(
+                u,
+                "# Normal scheduler, at its own niceness ([trainer] nice): after the planner."
+            );
+            let _ = writeln!(u, "CPUSchedulingPolicy=other");
+            if let Some(n) = nice {
+                let _ = writeln!(u, "Nice={n}");
+            }
+        }
     }
     // systemd 252 has no doubling back-off (RestartSteps= came in 254): the first delay is used.
     let restart = if r.on_failure { "on-failure" } else { "no" };
@@ -97,6 +111,7 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
     let file = ConfigFile::load(Some(&config))?;
     let stack: StackConfig = file.section("stack")?;
     stack.validate().map_err(|e| file.invalid("[stack]", e))?;
+    let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
     let bin = args.bin.unwrap_or_else(mtanet_mta::stack::bin_dir);
     let bin = std::path::absolute(&bin)?;
     std::fs::create_dir_all(&args.dest)
@@ -113,7 +128,9 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         let after = i.checked_sub(1).map(|j| &stack.process[j]);
         let name = format!("mtanet-{}.service", spec.name);
         let path = args.dest.join(&name);
-        std::fs::write(&path, unit(spec, after, &bin_s, &cfg_s, &args.user))
+        // The trainer lowers its own priority too; the unit says the same.
+        let nice = (spec.binary == "mta-trainer").then_some(trainer.nice);
+        std::fs::write(&path, unit(spec, after, nice, &bin_s, &cfg_s, &args.user))
             .with_context(|| format!("writing {}", path.display()))?;
         println!("installed {}", path.display());
         wants.push(name);

@@ -26,6 +26,7 @@ fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
     let (cfg, ipc, shutdown): (PredictorConfig, _, _) = args.common.start("predictor")?;
+    cfg.active_inference.validate()?;
     tch::set_num_threads(cfg.torch_threads);
     let mut policy = mtanet_predictor::policy::Policy::new(&cfg);
     if let Some(path) = &args.checkpoint {

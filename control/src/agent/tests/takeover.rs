@@ -136,3 +136,47 @@ fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
     );
     assert_eq!(a.stats.switches_to_reactive, 2);
 }
+
+/// Exploration is for learning a model; weights fit for control (a passing probe, e.g. from a
+/// checkpoint) wait for the preference on the line, so active inference takes over sooner.
+#[test]
+fn weights_fit_for_control_wait_for_the_preference_without_exploring() {
+    let frame = line_frame(6.0, 0.0);
+    let exploring = |probe: Option<f64>| {
+        let cfg = AgentConfig {
+            preference_frames: 1000,
+            ..cfg()
+        };
+        let explore = ExplorationConfig {
+            segments_per_s: 5.0,
+            ..Default::default()
+        };
+        let mut a = Agent::new(
+            &cfg,
+            &ReactiveConfig::default(),
+            &explore,
+            FrameShape::CAR,
+            0.02,
+        );
+        let health = Health {
+            probe,
+            ..Health::default()
+        };
+        let mut model = Toy::new(2, health);
+        let mut plans = still_planner();
+        for _ in 0..200 {
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+                .unwrap();
+        }
+        a.stats.exploration_steps
+    };
+    assert!(
+        exploring(None) > 0,
+        "a model without a probe is still learning"
+    );
+    assert!(
+        exploring(Some(0.5)) > 0,
+        "a probe below min_probe: still learning"
+    );
+    assert_eq!(exploring(Some(0.9)), 0);
+}

@@ -64,9 +64,9 @@ pub(super) fn print_table(soak: &Value, raw: &LatencySummary) {
     );
     let pl = &soak["planning"];
     println!(
-        "active inference {:.1}% of the steps (first takeover after {} s); late plans {}, fallbacks {}",
+        "active inference {:.1}% of the steps (first takeover after {:.1} s); late plans {}, fallbacks {}",
         100.0 * soak["active_inference_share"].as_f64().unwrap_or(0.0),
-        soak["first_takeover_s"],
+        soak["first_takeover_s"].as_f64().unwrap_or(f64::NAN),
         soak["late_plans"],
         soak["fallbacks"]
     );
