@@ -6,6 +6,7 @@
 
 pub mod cli;
 pub mod config;
+pub mod incident;
 pub mod latency;
 pub mod logging;
 pub mod messages;

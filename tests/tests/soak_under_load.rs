@@ -2,8 +2,8 @@
 //! binary: test binaries run one after another, so nothing else shares the cores). The planner
 //! is asked for more work than any machine finishes in a segment (12 CEM iterations of 64
 //! candidates: ~0.25 s here, where a segment is 0.1 s), so only planning to its deadline keeps
-//! it on time: on a slow or busy machine, plans get worse, never late. Without the deadline
-//! this test fails with hundreds of late plans.
+//! it on time: on a slow or busy machine, plans get worse, never late. With the planner ignoring
+//! its deadline (checked once) active inference never took the wheel and this test failed.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -53,15 +53,10 @@ fn beside_a_cpu_hog_active_inference_plans_every_segment_in_time() {
         "{soak:#}"
     );
     assert_eq!(get("/steps"), 3000, "{soak:#}");
-    for zero in [
-        "/late_plans",
-        "/fallbacks",
-        "/deadline_misses",
-        "/late_commands",
-        "/dropped_commands",
-    ] {
-        assert_eq!(get(zero), 0, "{zero}: {soak:#}");
-    }
+    assert_eq!(get("/fallbacks"), 0, "{soak:#}");
+    // No late plan, missed command (a late or dropped one) or overrun, but while the machine
+    // itself ran nothing (a host pausing the VM; the soak measures those pauses).
+    assert_eq!(get("/incidents/unexplained"), 0, "{soak:#}");
     assert!(
         get("/first_takeover_s").as_f64().is_some_and(|s| s <= 15.0),
         "active inference must take the wheel within 15 s: {soak:#}"

@@ -70,6 +70,19 @@ pub fn confine(cpus: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The CPUs this process may run on (after [`confine`]).
+pub fn allowed_cpus() -> Vec<usize> {
+    // SAFETY: an all-zero cpu_set_t is the empty set; sched_getaffinity(2) fills it.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    if unsafe { libc::sched_getaffinity(0, std::mem::size_of_val(&set), &mut set) } != 0 {
+        return vec![0];
+    }
+    // SAFETY: CPU_ISSET reads the set within CPU_SETSIZE.
+    (0..libc::CPU_SETSIZE as usize)
+        .filter(|&c| unsafe { libc::CPU_ISSET(c, &set) })
+        .collect()
+}
+
 /// The CPU a figure was measured on, and what it ran beside.
 #[derive(Debug, Clone, Serialize)]
 pub struct Machine {

@@ -4,6 +4,7 @@ mod canvas;
 mod evaluate;
 mod figures;
 mod load;
+mod pauses;
 mod pingpong;
 mod plot;
 mod record;

@@ -22,7 +22,9 @@ use serde::Serialize;
 use serde_json::{Value, json};
 
 use crate::load::{self, CpuHog, Machine};
+use crate::pauses::{self, PauseWatch};
 use crate::runcfg;
+use mtanet_ipc::incident::{Incident, IncidentKind};
 
 mod table;
 use table::print_table;
@@ -134,6 +136,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     }
     let machine = Machine::here(hog.len());
     eprintln!("[soak] {machine}");
+    let watch = PauseWatch::start(&load::allowed_cpus())?;
     let out = args.out.clone();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mode = if args.lockstep {
@@ -306,6 +309,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     drop(peer);
     let ends = sup.stop_all(Duration::from_secs(60));
     drop(hog);
+    let (pauses, machine_pauses) = watch.finish();
     if let Some(f) = failure {
         bail!("{f}; logs in {}", out.display());
     }
@@ -355,6 +359,16 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             (p.name.clone(), json!({ "scheduling": classes.get(&p.name), "rss_kb": { "start": a.0, "end": b.0 }, "fds": { "start": a.1, "end": b.1 } }))
         })
         .collect();
+    // A miss while the machine itself ran nothing is the machine's; the rest are the stack's.
+    let incidents: Vec<Incident> = [&sim["incidents"], &pred["incidents"]]
+        .into_iter()
+        .flat_map(|v| serde_json::from_value::<Vec<Incident>>(v.clone()).unwrap_or_default())
+        .collect();
+    let kind = |k: IncidentKind| incidents.iter().filter(|i| i.kind == k).count();
+    let paused = incidents
+        .iter()
+        .filter(|i| pauses::during_a_pause(&pauses, i.start_ns, i.end_ns, 1_000_000))
+        .count();
     let soak = json!({
         "mode": mode,
         "minutes": args.minutes,
@@ -375,6 +389,14 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         "fallbacks": n(&pred["control"]["fallbacks"]),
         "planning": pred["planning"],
         "machine": machine,
+        "machine_pauses": machine_pauses,
+        "incidents": {
+            "missed_commands": kind(IncidentKind::MissedCommand),
+            "overruns": kind(IncidentKind::Overrun),
+            "late_plans": kind(IncidentKind::LatePlan),
+            "during_machine_pauses": paused,
+            "unexplained": incidents.len() - paused,
+        },
         "trainer_updates": n(&tr["session_updates"]),
         "processes": per_process,
         "restarts": sup.restarts(),

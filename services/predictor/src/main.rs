@@ -23,6 +23,7 @@ struct Args {
 }
 
 fn main() -> anyhow::Result<()> {
+    mtanet_models::retain_freed_memory();
     logging::init();
     let args = Args::parse();
     let (cfg, ipc, shutdown): (PredictorConfig, _, _) = args.common.start("predictor")?;

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
 use mtanet_control::{AgentStats, PlanningSummary};
+use mtanet_ipc::incident::{self, Incident, IncidentKind};
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
@@ -53,6 +54,10 @@ pub struct Summary {
     /// What the plans could afford in their time: iterations, candidates, the share cut.
     #[serde(default)]
     pub planning: PlanningSummary,
+    /// When each late plan was due (from about when it was asked for), for a soak to set
+    /// beside the machine's pauses.
+    #[serde(default)]
+    pub incidents: Vec<Incident>,
     /// Recent next-frame MSE of the model and of copying the last frame (the bar to beat).
     pub model_mse: Option<f64>,
     pub copy_last_mse: Option<f64>,
@@ -212,7 +217,24 @@ fn answer_observations(
         }
         *expected_step = Some(obs.step + 1);
         let t0 = Instant::now();
+        let late_before = policy.stats().late_plans;
         let decision = policy.act(&obs)?;
+        if policy.stats().late_plans > late_before {
+            // Asked for a segment (frame_skip steps) before the one it was due for.
+            let segment = policy
+                .model
+                .as_ref()
+                .map_or(1, |m| m.config().frame_skip.max(1));
+            let asked = obs
+                .stamp_ns
+                .saturating_sub((segment as f64 * mtanet_ipc::CONTROL_PERIOD_S * 1e9) as u64);
+            incident::record(
+                &mut summary.incidents,
+                obs.step,
+                IncidentKind::LatePlan,
+                asked,
+            );
+        }
         let compute_ns = t0.elapsed().as_nanos() as u64;
         let (ratio, probe) = policy
             .model

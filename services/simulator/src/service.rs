@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use iceoryx2::prelude::*;
+use mtanet_ipc::incident::{self, IncidentKind};
 use mtanet_ipc::latency::LatencyStats;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
@@ -97,6 +98,7 @@ pub fn run(
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = Instant::now();
+        let t0_ns = stamp::monotonic_ns();
         if cfg.mode == Mode::Realtime {
             let due = start + Duration::from_secs_f64(step as f64 * period);
             tick_jitter.record_ns(t0.saturating_duration_since(due).as_nanos() as u64);
@@ -145,6 +147,12 @@ pub fn run(
                 summary.missed_commands += 1;
                 if !lockstep {
                     summary.deadline_misses += 1;
+                    incident::record(
+                        &mut summary.incidents,
+                        step,
+                        IncidentKind::MissedCommand,
+                        t0_ns,
+                    );
                 }
                 consecutive_misses += 1;
                 if consecutive_misses == 1 {
@@ -222,13 +230,14 @@ pub fn run(
                 summary.wrong_way_resets += 1;
             }
         }
-        step += 1;
         // The step's own work (in real time the wait for the next tick comes after).
         let work = t0.elapsed();
         step_time.record_ns(work.as_nanos() as u64);
         if work.as_secs_f64() > period {
             summary.overruns += 1;
+            incident::record(&mut summary.incidents, step, IncidentKind::Overrun, t0_ns);
         }
+        step += 1;
         if cfg.mode == Mode::Realtime {
             let next = start + Duration::from_secs_f64(step as f64 * period);
             let late = Instant::now().saturating_duration_since(next);

@@ -45,6 +45,10 @@ pub struct Summary {
     pub tick_jitter: LatencySummary,
     /// Steps whose work took longer than the control period (their tick was missed).
     pub overruns: u64,
+    /// Real time: when each missed command and overrun happened (the first 10,000), so that a
+    /// soak can tell the stack's own misses from the machine's pauses.
+    #[serde(default)]
+    pub incidents: Vec<mtanet_ipc::incident::Incident>,
     /// Histograms (upper bound in us, count), for pictures.
     pub step_time_hist: Vec<[f64; 2]>,
     pub round_trip_hist: Vec<[f64; 2]>,

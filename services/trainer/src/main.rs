@@ -24,6 +24,7 @@ struct Args {
 }
 
 fn main() -> anyhow::Result<()> {
+    mtanet_models::retain_freed_memory();
     logging::init();
     let args = Args::parse();
     let (cfg, ipc, shutdown): (TrainerConfig, _, _) = args.common.start("trainer")?;

@@ -62,6 +62,23 @@ pub(super) fn print_table(soak: &Value, raw: &LatencySummary) {
         soak["replay"]["dropped_chunks"],
         soak["tick_jitter_us"]["p99"].as_f64().unwrap_or(f64::NAN)
     );
+    let (mp, inc) = (&soak["machine_pauses"], &soak["incidents"]);
+    println!(
+        "machine pauses (a CPU that ran nothing for >= 3 ms): {} ({:.1}/min, worst {:.1} ms){}; missed commands {}, overruns {}, late plans {}: {} during a machine pause, {} the stack's own",
+        mp["count"],
+        mp["per_minute"].as_f64().unwrap_or(0.0),
+        mp["worst_ms"].as_f64().unwrap_or(0.0),
+        if mp["measured"].as_bool() == Some(true) {
+            ""
+        } else {
+            " (not measured: no SCHED_FIFO 99)"
+        },
+        inc["missed_commands"],
+        inc["overruns"],
+        inc["late_plans"],
+        inc["during_machine_pauses"],
+        inc["unexplained"]
+    );
     let pl = &soak["planning"];
     println!(
         "active inference {:.1}% of the steps (first takeover after {:.1} s); late plans {}, fallbacks {}",
