@@ -7,38 +7,12 @@
 //! it had once warmed up. The latency targets and what each plan could afford are reported by
 //! the soak itself (a benchmark), not asserted here.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-use mtanet_mta::stack::bin;
+use mtanet_system_tests::{here, one_minute_soak};
 
 #[test]
 fn a_one_minute_realtime_soak_misses_no_deadline_and_leaks_no_files() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("soak");
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let status = Command::new(bin("mta"))
-        .args([
-            "soak",
-            "--realtime",
-            "--minutes",
-            "1",
-            "--pingpong-seconds",
-            "5",
-        ])
-        .arg("--config")
-        .arg(data.join("../ops/mtanet.toml"))
-        .arg("--checkpoint")
-        .arg(data.join("data/oval_lockstep.safetensors"))
-        .arg("--out")
-        .arg(&out)
-        .stderr(std::fs::File::create(dir.path().join("soak.log")).unwrap())
-        .status()
-        .unwrap();
-    let log = std::fs::read_to_string(dir.path().join("soak.log")).unwrap_or_default();
-    assert!(status.success(), "mta soak failed: {status}\n{log}");
-    let soak: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("soak.json")).unwrap()).unwrap();
+    let soak = one_minute_soak(dir.path(), &here().join("../ops/mtanet.toml"), &[]);
     let get = |p: &str| soak.pointer(p).cloned().unwrap_or_default();
     assert_eq!(get("/steps"), 3000, "{soak:#}");
     assert_eq!(get("/clean_exit"), true, "{soak:#}");
@@ -66,5 +40,4 @@ fn a_one_minute_realtime_soak_misses_no_deadline_and_leaks_no_files() {
             "{name}'s open files grew: {soak:#}"
         );
     }
-    assert!(out.join("soak.png").exists());
 }

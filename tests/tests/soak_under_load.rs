@@ -5,48 +5,20 @@
 //! it on time: on a slow or busy machine, plans get worse, never late. With the planner ignoring
 //! its deadline (checked once) active inference never took the wheel and this test failed.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-use mtanet_mta::stack::bin;
+use mtanet_system_tests::{here, one_minute_soak};
 
 #[test]
 fn beside_a_cpu_hog_active_inference_plans_every_segment_in_time() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("soak");
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let shipped = std::fs::read_to_string(data.join("../ops/mtanet.toml")).unwrap();
+    let shipped = std::fs::read_to_string(here().join("../ops/mtanet.toml")).unwrap();
     let mut cfg: toml::Table = shipped.parse().unwrap();
-    let planner = cfg["predictor"]["active_inference"]["planner"]
-        .as_table()
-        .cloned()
-        .unwrap_or_default();
-    let mut planner = planner;
-    planner.insert("iterations".into(), 12.into());
-    planner.insert("samples".into(), 64.into());
-    cfg["predictor"]["active_inference"]
-        .as_table_mut()
-        .unwrap()
-        .insert("planner".into(), planner.into());
+    let planner = &mut cfg["predictor"]["active_inference"]["planner"];
+    planner["iterations"] = 12.into();
+    planner["samples"] = 64.into();
     let config = dir.path().join("ambitious.toml");
     std::fs::write(&config, toml::to_string(&cfg).unwrap()).unwrap();
 
-    let status = Command::new(bin("mta"))
-        .args(["soak", "--realtime", "--minutes", "1", "--cpu-hog"])
-        .args(["--pingpong-seconds", "3"])
-        .arg("--config")
-        .arg(&config)
-        .arg("--checkpoint")
-        .arg(data.join("data/oval_lockstep.safetensors"))
-        .arg("--out")
-        .arg(&out)
-        .stderr(std::fs::File::create(dir.path().join("soak.log")).unwrap())
-        .status()
-        .unwrap();
-    let log = std::fs::read_to_string(dir.path().join("soak.log")).unwrap_or_default();
-    assert!(status.success(), "mta soak failed: {status}\n{log}");
-    let soak: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("soak.json")).unwrap()).unwrap();
+    let soak = one_minute_soak(dir.path(), &config, &["--cpu-hog"]);
     let get = |p: &str| soak.pointer(p).cloned().unwrap_or_default();
     assert!(
         get("/machine/cpu_hog_processes").as_u64() >= Some(1),
