@@ -9,15 +9,9 @@ use serde::de::DeserializeOwned;
 /// Why a configuration could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    /// The file could not be read.
-    #[error("cannot read config file {path}: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    /// The file is not valid TOML.
-    #[error("config file {path} is not valid TOML: {message}")]
-    Parse { path: PathBuf, message: String },
+    /// The file could not be read or is not valid TOML.
+    #[error(transparent)]
+    File(#[from] mtanet_files::FileError),
     /// A section has a wrong, unknown or badly typed key.
     #[error("config file {path}, section [{section}]: {message}")]
     Section {
@@ -46,25 +40,24 @@ pub struct ConfigFile {
 
 impl ConfigFile {
     pub fn load(path: Option<&Path>) -> Result<Self, ConfigError> {
-        let Some(path) = path else {
-            return Ok(Self::default());
-        };
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-            path: path.into(),
-            source,
-        })?;
-        Self::parse(&text, path)
+        match path {
+            None => Ok(Self::default()),
+            Some(path) => Self::from_table(mtanet_files::read_table(path)?, path),
+        }
     }
 
-    /// Parses a stack config; a top-level key that is not one of [`SECTIONS`] (a misspelt
-    /// `[trainr]`, say) is an error naming it, not silently ignored.
+    /// Parses a stack config held in memory (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
-        let table = text
-            .parse::<toml::Table>()
-            .map_err(|e| ConfigError::Parse {
-                path: path.into(),
-                message: e.to_string(),
-            })?;
+        let table = toml::from_str(text).map_err(|e| mtanet_files::FileError::Toml {
+            path: path.into(),
+            message: e.to_string(),
+        })?;
+        Self::from_table(table, path)
+    }
+
+    /// A top-level key that is not one of [`SECTIONS`] (a misspelt `[trainr]`, say) is an
+    /// error naming it, not silently ignored.
+    fn from_table(table: toml::Table, path: &Path) -> Result<Self, ConfigError> {
         if let Some(unknown) = table.keys().find(|k| !SECTIONS.contains(&k.as_str())) {
             return Err(ConfigError::Section {
                 path: path.into(),

@@ -13,7 +13,6 @@ pub mod messages;
 pub mod names;
 pub mod node;
 pub mod ports;
-pub mod report;
 pub mod shutdown;
 pub mod stack;
 pub mod stamp;

@@ -12,7 +12,6 @@ use safetensors::tensor::TensorView;
 use safetensors::{Dtype, SafeTensors};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use tch::{Device, Kind, Tensor, nn::VarStore};
 
@@ -74,6 +73,9 @@ pub enum CheckpointError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// Writing the file failed (it names the file).
+    #[error(transparent)]
+    Write(#[from] mtanet_files::FileError),
     /// The bytes are not a complete safetensors file (truncated, or the header is damaged).
     #[error("not a readable checkpoint (truncated or corrupt): {0}")]
     Corrupt(#[from] safetensors::SafeTensorError),
@@ -200,39 +202,10 @@ pub fn save(
     cfg: &ModelConfig,
     meta: &Meta,
 ) -> Result<(), CheckpointError> {
-    write_atomic(path.as_ref(), &to_bytes(vs, cfg, meta)?)
-}
-
-/// Writes `bytes` to a temporary file in `path`'s directory, fsyncs and renames it over `path`.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
-    let io = |source| CheckpointError::Io {
-        path: path.to_owned(),
-        source,
-    };
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| io(std::io::Error::other("no file name")))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        // Persist the rename itself.
-        std::fs::File::open(dir)?.sync_all()
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(io)
+    Ok(mtanet_files::write_bytes(
+        path.as_ref(),
+        &to_bytes(vs, cfg, meta)?,
+    )?)
 }
 
 /// Decodes and verifies (format, schema, checksum) a checkpoint held in memory.

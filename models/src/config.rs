@@ -119,6 +119,9 @@ pub enum ConfigError {
         times: u32,
         div: i64,
     },
+    /// The network does not read the frames or actions the stack sends.
+    #[error("the model takes {model}, the stack sends {wire}")]
+    Wire { model: String, wire: String },
     /// The TOML text does not parse into a configuration.
     #[error("invalid configuration TOML: {0}")]
     Toml(#[from] toml::de::Error),
@@ -140,6 +143,26 @@ impl ModelConfig {
         let cfg: Self = toml::from_str(text)?;
         cfg.validate()?;
         Ok(cfg)
+    }
+
+    /// The network must read the frames the simulator sends (`image`: height, width) and the
+    /// commands' `action_dim` values: the predictor checks every checkpoint it is handed, the
+    /// trainer its `[trainer.model]`.
+    pub fn check_wire(&self, image: (usize, usize), action_dim: usize) -> Result<(), ConfigError> {
+        let (h, w) = (image.0 as i64, image.1 as i64);
+        if (self.image_height, self.image_width) != (h, w) {
+            return Err(ConfigError::Wire {
+                model: format!("{}x{} images", self.image_height, self.image_width),
+                wire: format!("{h}x{w}"),
+            });
+        }
+        if self.action_dim != action_dim as i64 {
+            return Err(ConfigError::Wire {
+                model: format!("{} action values", self.action_dim),
+                wire: format!("{action_dim}"),
+            });
+        }
+        Ok(())
     }
 
     /// Checks every rule the network relies on, naming the offending key.

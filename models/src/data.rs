@@ -1,8 +1,9 @@
 //! Data sets: `images` float32 `[N, T, H, W]` in [0, 1] and `actions` float32 `[N, T, A]`, where
 //! `actions[:, t]` moved the world from frame t-1 to t, stored as a numpy `.npz`.
 
-use ndarray::{ArrayD, IxDyn};
-use ndarray_npy::{NpzReader, NpzWriter, ReadNpyError, ReadNpzError};
+use mtanet_files::NpzArray;
+use ndarray::ArrayD;
+use ndarray_npy::{NpzReader, ReadNpyError, ReadNpzError};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -143,46 +144,36 @@ impl Dataset {
     }
 
     /// Writes `images` and `actions` as float32 arrays, uncompressed (numpy `np.savez` layout),
-    /// through a temporary file and a rename so that a crash never leaves a partial file.
+    /// atomically (the same writer as the simulator's recordings).
     pub fn save_npz(&self, path: impl AsRef<Path>) -> Result<(), DataError> {
         let path = path.as_ref();
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-        let result = self.write_npz(&tmp).and_then(|()| {
-            std::fs::rename(&tmp, path).map_err(|source| DataError::Io {
+        let flat = |t: &Tensor| {
+            Vec::<f32>::try_from(t.flatten(0, -1)).map_err(|e| DataError::Write {
                 path: path.to_owned(),
-                source,
+                detail: e.to_string(),
             })
-        });
-        if result.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        result
-    }
-
-    fn write_npz(&self, path: &Path) -> Result<(), DataError> {
-        let write = |detail: String| DataError::Write {
-            path: path.to_owned(),
-            detail,
         };
-        let file = File::create(path).map_err(|source| DataError::Io {
+        let shape = |t: &Tensor| t.size().iter().map(|&d| d as usize).collect();
+        let (images, actions) = (flat(&self.images)?, flat(&self.actions)?);
+        mtanet_files::write_npz(
+            path,
+            &[
+                NpzArray {
+                    name: "images",
+                    shape: shape(&self.images),
+                    data: &images,
+                },
+                NpzArray {
+                    name: "actions",
+                    shape: shape(&self.actions),
+                    data: &actions,
+                },
+            ],
+        )
+        .map_err(|e| DataError::Write {
             path: path.to_owned(),
-            source,
-        })?;
-        let mut npz = NpzWriter::new(file);
-        for (name, t) in [("images", &self.images), ("actions", &self.actions)] {
-            let data = Vec::<f32>::try_from(t.flatten(0, -1)).map_err(|e| write(e.to_string()))?;
-            let dims: Vec<usize> = t.size().iter().map(|&d| d as usize).collect();
-            let array =
-                ArrayD::from_shape_vec(IxDyn(&dims), data).map_err(|e| write(e.to_string()))?;
-            npz.add_array(name, &array)
-                .map_err(|e| write(e.to_string()))?;
-        }
-        npz.finish().map_err(|e| write(e.to_string()))?;
-        Ok(())
+            detail: e.to_string(),
+        })
     }
 
     /// The sequences of all `sets` in order; they must agree on T, H, W and A.

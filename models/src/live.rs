@@ -9,7 +9,7 @@ use std::time::Instant;
 use mtanet_control::{AgentModel, Drive, Health, Imagination, Wheels};
 use tch::{Kind, Tensor, nn::VarStore};
 
-use crate::checkpoint::{self, CheckpointError};
+use crate::checkpoint::{self, Checkpoint, CheckpointError};
 use crate::{ModelConfig, MtaPredNet, State, StepWeights};
 
 /// Exponential moving average.
@@ -63,7 +63,13 @@ fn frame_tensor(cfg: &ModelConfig, frame: &[f32]) -> Tensor {
 impl LiveModel {
     /// Decodes and checks a checkpoint; nothing of a bad one is used.
     pub fn from_bytes(bytes: &[u8], version: u64) -> Result<Self, CheckpointError> {
-        let (mut vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        Self::from_checkpoint(&checkpoint::from_bytes(bytes)?, version)
+    }
+
+    /// From a checkpoint decoded once (the weights loader builds the planner's copy from the
+    /// same one).
+    pub fn from_checkpoint(ck: &Checkpoint, version: u64) -> Result<Self, CheckpointError> {
+        let (mut vs, model) = ck.build()?;
         // Inference only: no gradients are kept for these weights.
         vs.freeze();
         let weights = model.inference_weights();
@@ -81,20 +87,6 @@ impl LiveModel {
             steps: 0,
             fresh: true,
         })
-    }
-
-    /// New weights: for the same network copied in place (the recurrent state and statistics
-    /// carry on); a different network is rebuilt from scratch.
-    pub fn update(&mut self, bytes: &[u8], version: u64) -> Result<(), CheckpointError> {
-        let ck = checkpoint::from_bytes(bytes)?;
-        if ck.config == *self.model.config() {
-            ck.apply(&mut self.vs, &ck.config)?;
-            self.weights = self.model.inference_weights();
-            self.version = version;
-        } else {
-            *self = Self::from_bytes(bytes, version)?;
-        }
-        Ok(())
     }
 
     /// The weights of `other`, decoded elsewhere (a loader thread), copied in place for the same
@@ -214,7 +206,11 @@ pub struct Imagined {
 
 impl Imagined {
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, CheckpointError> {
-        let (mut vs, model) = checkpoint::from_bytes(bytes)?.build()?;
+        Self::from_checkpoint(&checkpoint::from_bytes(bytes)?)
+    }
+
+    pub fn from_checkpoint(ck: &Checkpoint) -> Result<Self, CheckpointError> {
+        let (mut vs, model) = ck.build()?;
         vs.freeze();
         let weights = model.inference_weights();
         Ok(Self {
@@ -232,18 +228,6 @@ impl Imagined {
         }
         std::mem::swap(&mut self.weights, &mut other.weights);
         true
-    }
-
-    /// New weights (in place for the same network).
-    pub fn update(&mut self, bytes: &[u8]) -> Result<(), CheckpointError> {
-        let ck = checkpoint::from_bytes(bytes)?;
-        if ck.config == *self.model.config() {
-            ck.apply(&mut self.vs, &ck.config)?;
-            self.weights = self.model.inference_weights();
-        } else {
-            *self = Self::from_bytes(bytes)?;
-        }
-        Ok(())
     }
 
     pub fn model(&self) -> &MtaPredNet {

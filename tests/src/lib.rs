@@ -1,10 +1,17 @@
-//! System tests live in `tests/`; the process helpers they use are `mtanet_mta::stack`, and the
-//! soak runs they share are here.
+//! The system tests' harness: processes of the real binaries ([`Proc`]), waiting on a namespace's
+//! nodes, and the soak runs the tests share. The tests themselves live in `tests/`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use mtanet_mta::stack::bin;
+mod proc;
+mod stats_watch;
+
+use mtanet_mta::summary::SoakReport;
+
+pub use mtanet_mta::stack::*;
+pub use proc::*;
+pub use stats_watch::StatsWatch;
 
 /// This crate's folder (the test data and the shipped config are found from it).
 pub fn here() -> PathBuf {
@@ -13,7 +20,7 @@ pub fn here() -> PathBuf {
 
 /// A one-minute real-time `mta soak` of the stack in `config`, from the committed checkpoint,
 /// with `extra` arguments, in `dir`; its `soak.json`. Fails with the soak's log if it failed.
-pub fn one_minute_soak(dir: &Path, config: &Path, extra: &[&str]) -> serde_json::Value {
+pub fn one_minute_soak(dir: &Path, config: &Path, extra: &[&str]) -> SoakReport {
     let out = dir.join("soak");
     let log = dir.join("soak.log");
     let status = Command::new(bin("mta"))
@@ -38,6 +45,5 @@ pub fn one_minute_soak(dir: &Path, config: &Path, extra: &[&str]) -> serde_json:
     let text = std::fs::read_to_string(&log).unwrap_or_default();
     assert!(status.success(), "mta soak failed: {status}\n{text}");
     assert!(out.join("soak.png").exists(), "no soak.png\n{text}");
-    let json = std::fs::read(out.join("soak.json")).expect("reading soak.json");
-    serde_json::from_slice(&json).expect("soak.json is JSON")
+    mtanet_files::read_json(&out.join("soak.json")).expect("reading soak.json")
 }

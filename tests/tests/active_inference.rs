@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use mtanet_mta::stack::{bin, nodes, remove_namespace_files, unique_namespace};
+use mtanet_system_tests::{bin, nodes, remove_namespace_files, unique_namespace};
 
 fn checkpoint() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors")

@@ -10,12 +10,8 @@ use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::stack::StackConfig;
 use mtanet_ipc::{Command, names};
-use mtanet_mta::stack::*;
 use mtanet_mta::supervisor::{Event, Supervisor};
-
-fn arg(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
-}
+use mtanet_system_tests::*;
 
 /// Waits until the simulator gets commands again: a command for a step at least 25 steps after
 /// the first one seen from now on (half a second of stepping), so the loop really runs.
@@ -61,16 +57,12 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     let stack = StackConfig::default();
     let mut sup = Supervisor::new(dir.path()).unwrap();
     for spec in &stack.process {
-        let mut a = vec![
-            "--config".into(),
-            arg(&config),
-            "--namespace".into(),
-            ns.clone(),
-        ];
-        a.extend([
-            "--summary".into(),
-            arg(&dir.path().join(format!("{}.json", spec.binary))),
-        ]);
+        let summary = dir.path().join(format!("{}.json", spec.binary));
+        let a: Vec<String> = ["--config", arg(&config), "--namespace", &ns]
+            .into_iter()
+            .chain(["--summary", arg(&summary)])
+            .map(String::from)
+            .collect();
         sup.add(spec, a).unwrap();
     }
     for (k, p) in stack.process.iter().enumerate() {

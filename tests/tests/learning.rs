@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use mtanet_ipc::WeightsHeader;
 use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::weights_topic::WeightsSender;
-use mtanet_mta::stack::*;
+use mtanet_system_tests::*;
 
 /// A small network and eager publishing, so a test sees weights within seconds.
 const FAST_TRAINER: &str = r#"
@@ -22,10 +22,6 @@ action_scale = [5.0, 5.0]
 [trainer.train]
 batch_size = 4
 "#;
-
-fn arg(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// Writes `FAST_TRAINER` publishing every `publish_every` updates and keeping checkpoints in
 /// `dir/ck`; returns the config file and the checkpoint folder.

@@ -7,16 +7,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use mtanet_mta::stack::{
-    Proc, bin, nodes, read_json, remove_namespace_files, unique_namespace, wait_for_alive,
+use mtanet_system_tests::{
+    Proc, arg, bin, nodes, read_json, remove_namespace_files, unique_namespace, wait_for_alive,
 };
 
 fn data(p: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(p)
-}
-
-fn arg(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 /// `mta up` in lockstep from the committed checkpoint, in the background.

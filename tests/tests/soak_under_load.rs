@@ -19,35 +19,26 @@ fn beside_a_cpu_hog_active_inference_plans_every_segment_in_time() {
     std::fs::write(&config, toml::to_string(&cfg).unwrap()).unwrap();
 
     let soak = one_minute_soak(dir.path(), &config, &["--cpu-hog"]);
-    let get = |p: &str| soak.pointer(p).cloned().unwrap_or_default();
-    assert!(
-        get("/machine/cpu_hog_processes").as_u64() >= Some(1),
-        "{soak:#}"
-    );
-    assert_eq!(get("/steps"), 3000, "{soak:#}");
-    assert_eq!(get("/fallbacks"), 0, "{soak:#}");
+    assert!(soak.machine.cpu_hog_processes >= 1, "{soak:#?}");
+    assert_eq!(soak.steps, 3000, "{soak:#?}");
+    assert_eq!(soak.control.fallbacks, 0, "{soak:#?}");
     // No late plan, missed command (a late or dropped one) or overrun, but while the machine
     // itself ran nothing (a host pausing the VM; the soak measures those pauses).
-    assert_eq!(get("/incidents/unexplained"), 0, "{soak:#}");
+    assert_eq!(soak.incidents.unexplained, 0, "{soak:#?}");
     assert!(
-        get("/first_takeover_s").as_f64().is_some_and(|s| s <= 15.0),
-        "active inference must take the wheel within 15 s: {soak:#}"
+        soak.control.first_takeover_s.is_some_and(|s| s <= 15.0),
+        "active inference must take the wheel within 15 s: {soak:#?}"
     );
-    assert!(
-        get("/active_inference_share").as_f64() >= Some(0.85),
-        "{soak:#}"
-    );
+    assert!(soak.active_inference_share >= 0.85, "{soak:#?}");
     // The deadline did the work: plans were cut short of what was asked.
-    assert!(get("/planning/cut_share").as_f64() > Some(0.5), "{soak:#}");
+    assert!(soak.planning.cut_share > 0.5, "{soak:#?}");
     assert_eq!(
-        get("/planning/unscored"),
-        0,
-        "every plan scored its warm start: {soak:#}"
+        soak.planning.unscored, 0,
+        "every plan scored its warm start: {soak:#?}"
     );
+    let trainer = soak.processes.get("trainer").map(|p| p.scheduling.as_str());
     assert!(
-        get("/processes/trainer/scheduling")
-            .as_str()
-            .is_some_and(|s| s.starts_with("OTHER")),
-        "the trainer must not run real-time: {soak:#}"
+        trainer.is_some_and(|s| s.starts_with("OTHER")),
+        "the trainer must not run real-time: {soak:#?}"
     );
 }

@@ -5,7 +5,7 @@ use std::os::unix::net::UnixDatagram;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use mtanet_mta::stack::*;
+use mtanet_system_tests::*;
 
 #[test]
 fn rendered_units_pass_systemd_analyze_verify() {

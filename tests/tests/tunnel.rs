@@ -13,7 +13,7 @@ use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::weights_topic::{WeightsReceiver, WeightsSender};
 use mtanet_ipc::{ReplayChunk, WeightsHeader, names, stamp};
-use mtanet_mta::stack::{Proc, read_json, remove_namespace_files, unique_namespace};
+use mtanet_system_tests::{Proc, read_json, remove_namespace_files, unique_namespace};
 
 /// The topics that cross (ARCHITECTURE.md "Beyond one machine"); each names a publish-subscribe
 /// service and the event service that wakes its readers.

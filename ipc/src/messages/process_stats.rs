@@ -31,7 +31,7 @@ pub struct ProcessStats {
     /// Simulator: laps; predictor: the [`crate::CommandSource`] of its last command; trainer:
     /// replay sequences held.
     pub laps_or_driver_or_fill: u32,
-    /// Simulator: deadline misses; predictor: fallbacks; trainer: replay chunks lost.
+    /// Simulator: missed commands; predictor: fallbacks; trainer: replay chunks lost.
     pub faults: u32,
     /// Predictor: live model error / copy-last; trainer: last loss; simulator: NaN.
     pub quality: f32,

@@ -1,4 +1,6 @@
 use super::*;
+use ndarray::IxDyn;
+use ndarray_npy::NpzWriter;
 
 fn tiny() -> Dataset {
     let images = Tensor::rand([3, 4, 8, 12], (Kind::Float, tch::Device::Cpu));

@@ -2,4 +2,5 @@
 
 pub mod notify;
 pub mod stack;
+pub mod summary;
 pub mod supervisor;

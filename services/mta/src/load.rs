@@ -5,7 +5,7 @@
 use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, bail};
-use serde::Serialize;
+use mtanet_mta::summary::Machine;
 
 /// One busy process per core at normal priority (`yes > /dev/null`), until dropped.
 pub struct CpuHog(Vec<Child>);
@@ -84,43 +84,18 @@ pub fn allowed_cpus() -> Vec<usize> {
 }
 
 /// The CPU a figure was measured on, and what it ran beside.
-#[derive(Debug, Clone, Serialize)]
-pub struct Machine {
-    pub cpu_model: String,
-    pub avx512: bool,
-    /// CPUs this run may use.
-    pub cpus: usize,
-    /// Busy processes at normal priority beside the run.
-    pub cpu_hog_processes: usize,
-}
-
-impl Machine {
-    pub fn here(cpu_hog_processes: usize) -> Self {
-        let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-        let cpu_model = info
-            .lines()
-            .find_map(|l| l.strip_prefix("model name"))
-            .and_then(|l| l.split_once(':'))
-            .map_or_else(|| "unknown".into(), |(_, m)| m.trim().to_string());
-        Self {
-            cpu_model,
-            avx512: info.split_whitespace().any(|w| w == "avx512f"),
-            cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            cpu_hog_processes,
-        }
-    }
-}
-
-impl std::fmt::Display for Machine {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{} ({}), {} CPU(s) for the run, {} CPU hog process(es) beside it",
-            self.cpu_model,
-            if self.avx512 { "AVX-512" } else { "no AVX-512" },
-            self.cpus,
-            self.cpu_hog_processes
-        )
+pub fn machine(cpu_hog_processes: usize) -> Machine {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let cpu_model = info
+        .lines()
+        .find_map(|l| l.strip_prefix("model name"))
+        .and_then(|l| l.split_once(':'))
+        .map_or_else(|| "unknown".into(), |(_, m)| m.trim().to_string());
+    Machine {
+        cpu_model,
+        avx512: info.split_whitespace().any(|w| w == "avx512f"),
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        cpu_hog_processes,
     }
 }
 
@@ -134,6 +109,6 @@ mod tests {
             let e = confine(bad).unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
         }
-        assert!(Machine::here(0).cpus >= 1);
+        assert!(machine(0).cpus >= 1);
     }
 }

@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use mtanet_ipc::stamp;
+use mtanet_mta::summary::PauseSummary;
 use serde::Serialize;
 
 /// Lateness from which a wake-up counts as a pause of the CPU.
@@ -30,17 +31,6 @@ pub struct PauseWatch {
     threads: Vec<JoinHandle<bool>>,
     pauses: Arc<Mutex<Vec<Pause>>>,
     started_ns: u64,
-}
-
-/// What the watch saw.
-#[derive(Debug, Clone, Serialize)]
-pub struct PauseSummary {
-    /// False without the privilege to run SCHED_FIFO 99 (nothing was measured then).
-    pub measured: bool,
-    pub count: usize,
-    pub per_minute: f64,
-    pub worst_ms: f64,
-    pub total_ms: f64,
 }
 
 impl PauseWatch {

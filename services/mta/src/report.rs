@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use mtanet_ipc::latency::LatencySummary;
+use mtanet_mta::summary::Control;
 use mtanet_predictor::service::Summary as PredictorSummary;
 use mtanet_simulator::service::Summary as SimulatorSummary;
 use mtanet_trainer::service::Summary as TrainerSummary;
@@ -36,25 +37,6 @@ pub struct RunInfo {
     pub config: Option<PathBuf>,
 }
 
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]
-pub struct Percentiles {
-    pub p50: f64,
-    pub p99: f64,
-    pub p999: f64,
-    pub max: f64,
-}
-
-impl From<LatencySummary> for Percentiles {
-    fn from(s: LatencySummary) -> Self {
-        Self {
-            p50: s.p50_us,
-            p99: s.p99_us,
-            p999: s.p999_us,
-            max: s.max_us,
-        }
-    }
-}
-
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct Report {
     pub steps: u64,
@@ -62,7 +44,7 @@ pub struct Report {
     pub wall_seconds: f64,
     pub track: PathBuf,
     pub lockstep: bool,
-    pub control: serde_json::Value,
+    pub control: Control,
     /// What the plans could afford in real time (iterations, candidates, the share cut by
     /// their deadline, the cost reached); absent without a predictor.
     pub planning: Option<mtanet_control::PlanningSummary>,
@@ -70,22 +52,23 @@ pub struct Report {
     pub lateral_error_m: serde_json::Value,
     pub prediction: serde_json::Value,
     pub probe: serde_json::Value,
-    pub latency_us: BTreeMap<String, Percentiles>,
-    pub deadline_misses: u64,
+    pub latency: BTreeMap<String, LatencySummary>,
+    /// Steps whose command did not come within the simulator's wait (the fallback drove).
     pub missed_commands: u64,
+    /// Steps whose work took longer than their 20 ms period.
+    pub overruns: u64,
     pub trainer: serde_json::Value,
     pub replay: serde_json::Value,
     /// Restarts of each process by the supervisor (`mta up`).
     pub restarts: serde_json::Value,
 }
 
+/// A summary, or `None` where the process wrote none.
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<Option<T>> {
-    match std::fs::read(path) {
-        Ok(b) => Ok(Some(
-            serde_json::from_slice(&b).with_context(|| format!("reading {}", path.display()))?,
-        )),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    match mtanet_files::read_json(path) {
+        Ok(v) => Ok(Some(v)),
+        Err(e) if e.is_not_found() => Ok(None),
+        Err(e) => Err(e.into()),
     }
 }
 
@@ -108,17 +91,16 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
     let tr: Option<TrainerSummary> = read_json(&dir.join("mta-trainer.json"))?;
     let sup: Option<serde_json::Value> = read_json(&dir.join("supervisor.json"))?;
     let c = &sim.control;
-    let steps = |k: &str| c.steps.get(k).copied().unwrap_or(0);
     let lat = |k: &str| c.lateral_mean_m.get(k).copied();
     let mut latency = BTreeMap::new();
-    latency.insert("step".into(), Percentiles::from(sim.step_time));
-    latency.insert("round_trip".into(), sim.round_trip.into());
+    latency.insert("step".into(), sim.step_time);
+    latency.insert("round_trip".into(), sim.round_trip);
     if sim.tick_late.count > 0 {
-        latency.insert("tick_late".into(), sim.tick_late.into());
+        latency.insert("tick_late".into(), sim.tick_late);
     }
     if let Some(p) = &pred {
-        latency.insert("predictor".into(), p.compute.into());
-        latency.insert("plan".into(), p.plan.into());
+        latency.insert("predictor".into(), p.compute);
+        latency.insert("plan".into(), p.plan);
     }
     let report = Report {
         steps: sim.steps,
@@ -126,19 +108,7 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
         wall_seconds: sim.wall_seconds,
         track: info.track.clone(),
         lockstep: info.lockstep,
-        control: serde_json::json!({
-            "reactive_steps": steps("reactive"),
-            "exploration_steps": steps("exploration"),
-            "active_inference_steps": steps("active_inference"),
-            "fallback_steps": steps("fallback"),
-            "teacher_steps": steps("teacher"),
-            "exploration_fraction": c.exploration_fraction,
-            "switches": c.switches,
-            "fallbacks": c.fallbacks,
-            "late_plans": pred.as_ref().map(|p| p.control.late_plans),
-            "first_takeover_s": pred.as_ref().and_then(|p| p.control.first_takeover_step)
-                .map(|s| s as f64 * mtanet_ipc::CONTROL_PERIOD_S),
-        }),
+        control: Control::new(c, pred.as_ref().map(|p| &p.control)),
         planning: pred.as_ref().map(|p| p.planning),
         laps: serde_json::json!({
             "completed": sim.laps,
@@ -162,25 +132,25 @@ pub fn write(dir: &Path) -> anyhow::Result<Report> {
             "rank_correlation": tr.as_ref().and_then(|t| t.probe).or(pred.as_ref().and_then(|p| p.probe)),
             "step": tr.as_ref().and_then(|t| t.probe_step),
         }),
-        latency_us: latency,
-        deadline_misses: sim.deadline_misses,
+        latency,
         missed_commands: sim.missed_commands,
+        overruns: sim.overruns,
         trainer: serde_json::json!({
             "updates": tr.as_ref().map(|t| t.updates),
             "session_updates": tr.as_ref().map(|t| t.session_updates),
             "updates_per_1000_steps": (sim.pace.paced_steps > 0).then_some(sim.pace.updates_per_1000_steps),
             "pace_target": sim.pace.target_updates_per_1000_steps,
-            "update_time_us": tr.as_ref().map(|t| Percentiles::from(t.update_time)),
+            "update_time": tr.as_ref().map(|t| t.update_time),
         }),
         replay: serde_json::json!({
             "chunks_sent": sim.replay_chunks_sent,
             "chunks_received": tr.as_ref().map(|t| t.chunks_received),
-            "dropped_chunks": tr.as_ref().map(|t| t.chunks_lost),
+            "chunks_lost": tr.as_ref().map(|t| t.chunks_lost),
             "exploration_fraction": tr.as_ref().map(|t| t.exploration_fraction),
         }),
         restarts: sup.map(|s| s["restarts"].clone()).unwrap_or_default(),
     };
-    mtanet_ipc::report::write_json(&dir.join("report.json"), &report)?;
+    mtanet_files::write_json(&dir.join("report.json"), &report)?;
     if let Err(e) = lap_trace(dir, &info.track) {
         tracing::warn!("no lap trace picture: {e:#}");
     }

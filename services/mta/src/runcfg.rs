@@ -18,10 +18,7 @@ pub fn effective_config(
         .map(Path::to_path_buf)
         .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
     let mut table: toml::Table = match &source {
-        Some(p) => std::fs::read_to_string(p)
-            .with_context(|| format!("reading {}", p.display()))?
-            .parse()
-            .with_context(|| format!("{} is not valid TOML", p.display()))?,
+        Some(p) => mtanet_files::read_table(p)?,
         None => toml::Table::new(),
     };
     let section = |t: &mut toml::Table, name: &str| -> anyhow::Result<toml::Table> {
@@ -57,7 +54,7 @@ pub fn effective_config(
     }
     table.insert("simulator".into(), sim.into());
     let path = out.join("stack.toml");
-    std::fs::write(&path, toml::to_string(&table)?)?;
+    mtanet_files::write_bytes(&path, toml::to_string(&table)?.as_bytes())?;
     // Every section, as the services will read it: a typo fails here, naming file and key.
     let file = ConfigFile::load(Some(&path))?;
     let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;

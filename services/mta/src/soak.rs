@@ -3,9 +3,7 @@
 //! a private namespace. A raw iceoryx2 ping-pong with the same payloads and wake-up mechanism
 //! measures the transport floor in the same run: alone before the stack starts, and beside it
 //! all through (the floor under the same load, which the target compares with). Writes `soak.json`
-//! (latency percentiles of each leg, tick jitter, deadline misses, dropped commands, replay
-//! losses, RSS and open files per process at start and end) and `soak.png`, and prints a table
-//! with the targets.
+//! ([`SoakReport`]) and `soak.png`, and prints a table with the targets.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -14,14 +12,17 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::config::ConfigFile;
-use mtanet_ipc::latency::LatencySummary;
 use mtanet_ipc::stack::StackConfig;
 use mtanet_mta::stack::{bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace};
+use mtanet_mta::summary::{
+    Control, IncidentCounts, ProcessUse, ReplayCounts, SoakReport, StartEnd,
+};
 use mtanet_mta::supervisor::{Event, Supervisor};
-use serde::Serialize;
-use serde_json::{Value, json};
+use mtanet_predictor::service::Summary as PredictorSummary;
+use mtanet_simulator::summary::Summary as SimulatorSummary;
+use mtanet_trainer::service::Summary as TrainerSummary;
 
-use crate::load::{self, CpuHog, Machine};
+use crate::load::{self, CpuHog};
 use crate::pauses::{self, PauseWatch};
 use crate::runcfg;
 use mtanet_ipc::incident::{Incident, IncidentKind};
@@ -62,31 +63,6 @@ pub struct SoakArgs {
     /// Confine the whole run (stack and ping-pong) to these CPUs, e.g. `0` or `0-1`.
     #[arg(long)]
     cpus: Option<String>,
-}
-
-#[derive(Debug, Clone, Copy, Default, Serialize)]
-struct Pct {
-    p50: f64,
-    p90: f64,
-    p99: f64,
-    p999: f64,
-    max: f64,
-}
-
-impl From<&LatencySummary> for Pct {
-    fn from(s: &LatencySummary) -> Self {
-        Self {
-            p50: s.p50_us,
-            p90: s.p90_us,
-            p99: s.p99_us,
-            p999: s.p999_us,
-            max: s.max_us,
-        }
-    }
-}
-
-fn lat(v: &Value) -> LatencySummary {
-    serde_json::from_value(v.clone()).unwrap_or_default()
 }
 
 /// A process's scheduling class as `ps` shows it: "FIFO 20", or "OTHER nice 10".
@@ -134,7 +110,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     if let Some(cpus) = &args.cpus {
         load::confine(cpus)?;
     }
-    let machine = Machine::here(hog.len());
+    let machine = load::machine(hog.len());
     eprintln!("[soak] {machine}");
     let watch = PauseWatch::start(&load::allowed_cpus())?;
     let out = args.out.clone();
@@ -321,90 +297,95 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let read = |n: &str| -> anyhow::Result<Value> {
-        let p = out.join(n);
-        Ok(serde_json::from_str(
-            &std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?,
-        )?)
-    };
-    let (sim, pred, tr) = (
-        read("mta-simulator.json")?,
-        read("mta-predictor.json")?,
-        read("mta-trainer.json")?,
+    let (sim, pred, tr): (SimulatorSummary, PredictorSummary, TrainerSummary) = (
+        mtanet_files::read_json(&out.join("mta-simulator.json"))?,
+        mtanet_files::read_json(&out.join("mta-predictor.json"))?,
+        mtanet_files::read_json(&out.join("mta-trainer.json"))?,
     );
     let leftovers = (nodes(&ns), leftover_shm(&ns));
     remove_namespace_files(&ns);
 
-    let mut latency = BTreeMap::new();
-    latency.insert(
-        "obs_to_predictor",
-        Pct::from(&lat(&pred["obs_to_predictor"])),
-    );
-    latency.insert("predictor", Pct::from(&lat(&pred["compute"])));
-    latency.insert("cmd_to_sim", Pct::from(&lat(&sim["cmd_to_sim"])));
-    latency.insert("round_trip", Pct::from(&lat(&sim["round_trip"])));
-    latency.insert("step", Pct::from(&lat(&sim["step_time"])));
-    latency.insert("plan", Pct::from(&lat(&pred["plan"])));
     let raw = pingpong.summary();
-    latency.insert("raw_pingpong", Pct::from(&raw));
-    latency.insert("raw_pingpong_idle", Pct::from(&idle.summary()));
-    let n = |v: &Value| v.as_u64().unwrap_or(0);
-    let sent = n(&pred["commands_sent"]);
-    let used = n(&sim["commands_received"]);
-    let per_process: BTreeMap<String, Value> = stack
+    let latency = [
+        ("raw_pingpong_idle", idle.summary()),
+        ("raw_pingpong", raw),
+        ("round_trip", sim.round_trip),
+        ("obs_to_predictor", pred.obs_to_predictor),
+        ("predictor", pred.compute),
+        ("cmd_to_sim", sim.cmd_to_sim),
+        ("step", sim.step_time),
+        ("plan", pred.plan),
+        ("tick_jitter", sim.tick_jitter),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    let processes = stack
         .process
         .iter()
         .map(|p| {
-            let (a, b) = (first.get(&p.name).copied().unwrap_or_default(), last.get(&p.name).copied().unwrap_or_default());
-            (p.name.clone(), json!({ "scheduling": classes.get(&p.name), "rss_kb": { "start": a.0, "end": b.0 }, "fds": { "start": a.1, "end": b.1 } }))
+            let a = first.get(&p.name).copied().unwrap_or_default();
+            let b = last.get(&p.name).copied().unwrap_or_default();
+            let use_ = ProcessUse {
+                scheduling: classes.get(&p.name).cloned().unwrap_or_default(),
+                rss_kb: StartEnd {
+                    start: a.0,
+                    end: b.0,
+                },
+                fds: StartEnd {
+                    start: a.1,
+                    end: b.1,
+                },
+            };
+            (p.name.clone(), use_)
         })
         .collect();
-    // A miss while the machine itself ran nothing is the machine's; the rest are the stack's.
-    let incidents: Vec<Incident> = [&sim["incidents"], &pred["incidents"]]
-        .into_iter()
-        .flat_map(|v| serde_json::from_value::<Vec<Incident>>(v.clone()).unwrap_or_default())
+    let incidents: Vec<Incident> = sim
+        .incidents
+        .iter()
+        .chain(&pred.incidents)
+        .copied()
         .collect();
     let kind = |k: IncidentKind| incidents.iter().filter(|i| i.kind == k).count();
     let paused = incidents
         .iter()
         .filter(|i| pauses::during_a_pause(&pauses, i.start_ns, i.end_ns, 1_000_000))
         .count();
-    let soak = json!({
-        "mode": mode,
-        "minutes": args.minutes,
-        "steps": n(&sim["steps"]),
-        "latency_us": latency,
-        "tick_jitter_us": Pct::from(&lat(&sim["tick_jitter"])),
-        // A step whose work took longer than its 20 ms period.
-        "deadline_misses": n(&sim["overruns"]),
-        // Commands later than the simulator's wait (half a period in real time): the fallback drove.
-        "late_commands": n(&sim["missed_commands"]),
-        "dropped_commands": sent.saturating_sub(used),
-        "replay": { "chunks_sent": n(&sim["replay_chunks_sent"]), "chunks_received": n(&tr["chunks_received"]), "dropped_chunks": n(&tr["chunks_lost"]) },
-        "raw_pingpong_lost": pingpong_lost,
-        "control": pred["control"],
-        "active_inference_share": n(&pred["control"]["active_inference_steps"]) as f64 / n(&sim["steps"]).max(1) as f64,
-        "first_takeover_s": pred["control"]["first_takeover_step"].as_u64().map(|s| s as f64 * mtanet_ipc::CONTROL_PERIOD_S),
-        "late_plans": n(&pred["control"]["late_plans"]),
-        "fallbacks": n(&pred["control"]["fallbacks"]),
-        "planning": pred["planning"],
-        "machine": machine,
-        "machine_pauses": machine_pauses,
-        "incidents": {
-            "missed_commands": kind(IncidentKind::MissedCommand),
-            "overruns": kind(IncidentKind::Overrun),
-            "late_plans": kind(IncidentKind::LatePlan),
-            "during_machine_pauses": paused,
-            "unexplained": incidents.len() - paused,
+    let control = Control::new(&sim.control, Some(&pred.control));
+    let soak = SoakReport {
+        mode: mode.into(),
+        minutes: args.minutes,
+        steps: sim.steps,
+        machine,
+        latency,
+        overruns: sim.overruns,
+        missed_commands: sim.missed_commands,
+        dropped_commands: pred.commands_sent.saturating_sub(sim.commands_received),
+        replay: ReplayCounts {
+            chunks_sent: sim.replay_chunks_sent,
+            chunks_received: tr.chunks_received,
+            chunks_lost: tr.chunks_lost,
         },
-        "trainer_updates": n(&tr["session_updates"]),
-        "processes": per_process,
-        "restarts": sup.restarts(),
-        "clean_exit": leftovers.0.alive.is_empty() && leftovers.0.dead.is_empty() && leftovers.1.is_empty(),
-    });
-    mtanet_ipc::report::write_json(&out.join("soak.json"), &soak)?;
-    let hist =
-        |v: &Value| -> Vec<[f64; 2]> { serde_json::from_value(v.clone()).unwrap_or_default() };
+        raw_pingpong_lost: pingpong_lost,
+        control: control.clone(),
+        active_inference_share: control.active_inference_steps as f64 / sim.steps.max(1) as f64,
+        planning: pred.planning,
+        machine_pauses,
+        incidents: IncidentCounts {
+            missed_commands: kind(IncidentKind::MissedCommand),
+            overruns: kind(IncidentKind::Overrun),
+            late_plans: kind(IncidentKind::LatePlan),
+            during_machine_pauses: paused,
+            unexplained: incidents.len() - paused,
+        },
+        trainer_updates: tr.session_updates,
+        processes,
+        restarts: sup.restarts(),
+        clean_exit: leftovers.0.alive.is_empty()
+            && leftovers.0.dead.is_empty()
+            && leftovers.1.is_empty(),
+    };
+    mtanet_files::write_json(&out.join("soak.json"), &soak)?;
     crate::report::latency_picture(
         &out.join("soak.png"),
         &[
@@ -412,17 +393,14 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
                 "raw ping-pong round trip (beside the stack)",
                 &pingpong.histogram(),
             ),
-            (
-                "observation -> predictor",
-                &hist(&pred["obs_to_predictor_hist"]),
-            ),
-            ("predictor compute", &hist(&pred["compute_hist"])),
-            ("command -> simulator", &hist(&sim["cmd_to_sim_hist"])),
-            ("simulator step", &hist(&sim["step_time_hist"])),
+            ("observation -> predictor", &pred.obs_to_predictor_hist),
+            ("predictor compute", &pred.compute_hist),
+            ("command -> simulator", &sim.cmd_to_sim_hist),
+            ("simulator step", &sim.step_time_hist),
         ],
     )?;
-    print_table(&soak, &raw);
-    if !soak["clean_exit"].as_bool().unwrap_or(false) {
+    print_table(&soak);
+    if !soak.clean_exit {
         bail!("the stack left iceoryx2 resources behind: {leftovers:?}");
     }
     Ok(())

@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use mtanet_ipc::cli::CommonArgs;
+use mtanet_ipc::latency::LatencySummary;
 use mtanet_ipc::node::{
     IpcConfig, NodeCensus, ServiceEntry, census, create_node, create_observer_node, services,
 };
@@ -44,7 +45,9 @@ pub struct ProcessView {
     pub rate_hz: Option<f64>,
     pub cpu_percent: f64,
     pub rss_kb: u64,
-    pub latency_us: BTreeMap<&'static str, f64>,
+    /// Of its unit of work (a step, a tick's compute, an update); the stats message carries no
+    /// p90 (0 here).
+    pub latency: LatencySummary,
     /// The role's own figures (laps, driver, fallbacks, loss, ...).
     pub detail: BTreeMap<&'static str, serde_json::Value>,
 }
@@ -52,13 +55,10 @@ pub struct ProcessView {
 impl ProcessView {
     /// `p50/p99/p99.9/max` in whole microseconds.
     pub fn latency_text(&self) -> String {
-        let l = |k| self.latency_us.get(k).copied().unwrap_or(f64::NAN);
+        let l = &self.latency;
         format!(
             "{:.0}/{:.0}/{:.0}/{:.0}",
-            l("p50"),
-            l("p99"),
-            l("p999"),
-            l("max")
+            l.p50_us, l.p99_us, l.p999_us, l.max_us
         )
     }
 }
@@ -84,7 +84,7 @@ pub fn view(s: &ProcessStats) -> ProcessView {
     match s.role() {
         "simulator" => {
             detail.insert("laps", json!(x));
-            detail.insert("deadline_misses", json!(faults));
+            detail.insert("missed_commands", json!(faults));
         }
         "predictor" => {
             let driver = CommandSource::from_u32(x).map_or("?", CommandSource::name);
@@ -99,15 +99,14 @@ pub fn view(s: &ProcessStats) -> ProcessView {
         }
         _ => {}
     }
-    let latency = [
-        ("p50", s.p50_us),
-        ("p99", s.p99_us),
-        ("p999", s.p999_us),
-        ("max", s.max_us),
-    ]
-    .into_iter()
-    .map(|(k, v)| (k, f64::from(v)))
-    .collect();
+    let latency = LatencySummary {
+        count: s.count,
+        p50_us: f64::from(s.p50_us),
+        p90_us: 0.0,
+        p99_us: f64::from(s.p99_us),
+        p999_us: f64::from(s.p999_us),
+        max_us: f64::from(s.max_us),
+    };
     ProcessView {
         pid: s.pid,
         restarts: s.restarts,
@@ -116,7 +115,7 @@ pub fn view(s: &ProcessStats) -> ProcessView {
         rate_hz: finite(s.rate_hz),
         cpu_percent: f64::from(s.cpu_percent),
         rss_kb: s.rss_kb,
-        latency_us: latency,
+        latency,
         detail,
     }
 }

@@ -130,8 +130,8 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         let path = args.dest.join(&name);
         // The trainer lowers its own priority too; the unit says the same.
         let nice = (spec.binary == "mta-trainer").then_some(trainer.nice);
-        std::fs::write(&path, unit(spec, after, nice, &bin_s, &cfg_s, &args.user))
-            .with_context(|| format!("writing {}", path.display()))?;
+        let text = unit(spec, after, nice, &bin_s, &cfg_s, &args.user);
+        mtanet_files::write_bytes(&path, text.as_bytes())?;
         println!("installed {}", path.display());
         wants.push(name);
     }
@@ -146,7 +146,7 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         wants.join(" ")
     );
     let path = args.dest.join("mtanet.target");
-    std::fs::write(&path, target)?;
+    mtanet_files::write_bytes(&path, target.as_bytes())?;
     println!("installed {}", path.display());
     Ok(())
 }

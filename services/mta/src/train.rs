@@ -78,11 +78,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     // One intra-op thread: see mtanet_models' crate docs (2 shared cores, tiny ops).
     tch::set_num_threads(1);
     let mut run: RunConfig = match &args.config {
-        Some(p) => {
-            let text =
-                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            toml::from_str(&text).with_context(|| format!("parsing {}", p.display()))?
-        }
+        Some(p) => mtanet_files::read_toml(p)?,
         None => RunConfig::default(),
     };
     if let Some(s) = args.seed {
@@ -101,9 +97,11 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let out = |name: &str| args.out.join(name);
-    std::fs::write(
-        out("config.toml"),
-        toml::to_string(&run).context("serialising config")?,
+    mtanet_files::write_bytes(
+        &out("config.toml"),
+        toml::to_string(&run)
+            .context("serialising config")?
+            .as_bytes(),
     )?;
 
     let mut trainer = Trainer::f_new(&run.model, &run.train).context("building the model")?;
@@ -226,7 +224,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         model: &run.model,
         train: &run.train,
     };
-    std::fs::write(out("metrics.json"), serde_json::to_string_pretty(&metrics)?)?;
+    mtanet_files::write_json(&out("metrics.json"), &metrics)?;
     tracing::info!(
         mse = eval.mse,
         copy_last_mse = eval.copy_last_mse,

@@ -108,7 +108,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         checkpoint: args.checkpoint.clone(),
         config: args.config.clone(),
     };
-    mtanet_ipc::report::write_json(&out.join("run.json"), &info)?;
+    mtanet_files::write_json(&out.join("run.json"), &info)?;
     eprintln!(
         "[up] run folder {}; config {}",
         out.display(),
@@ -216,7 +216,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             None => failed.push(format!("{name} did not stop within 60 s")),
         }
     }
-    mtanet_ipc::report::write_json(
+    mtanet_files::write_json(
         &out.join("supervisor.json"),
         &serde_json::json!({ "restarts": sup.restarts() }),
     )?;

@@ -6,7 +6,45 @@
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 
-use crate::policy::{Prepared, background_priority, prepare};
+use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_WIDTH};
+use mtanet_models::ModelConfig;
+use mtanet_models::live::{Imagined, LiveModel};
+
+use crate::policy::background_priority;
+
+/// A checkpoint's network must read the frames and actions the simulator sends.
+pub fn check_wire_contract(cfg: &ModelConfig) -> anyhow::Result<()> {
+    cfg.check_wire((IMAGE_HEIGHT, IMAGE_WIDTH), ACTION_DIM)
+        .map_err(|e| anyhow::anyhow!("the checkpoint's network: {e}"))
+}
+
+/// Weights decoded and checked, ready for [`crate::policy::Policy::install`].
+pub struct Prepared {
+    pub(crate) model: LiveModel,
+    pub(crate) imagined: Imagined,
+    pub version: u64,
+    pub(crate) probe: Option<f64>,
+    /// Time taken to decode and check them, ms.
+    pub decode_ms: f64,
+}
+
+/// Decodes and checks a checkpoint completely, on any thread (several ms for the default
+/// network: the weights loader does it off the control loop); nothing of a bad one is used.
+pub fn prepare(bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<Prepared> {
+    let t0 = std::time::Instant::now();
+    // Decoded and verified once; the wire contract checked before anything is built.
+    let ck = mtanet_models::checkpoint::from_bytes(bytes)?;
+    check_wire_contract(&ck.config)?;
+    let model = LiveModel::from_checkpoint(&ck, version)?;
+    let imagined = Imagined::from_checkpoint(&ck)?;
+    Ok(Prepared {
+        model,
+        imagined,
+        version,
+        probe: probe.is_finite().then_some(f64::from(probe)),
+        decode_ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
 
 struct Job {
     bytes: Vec<u8>,

@@ -2,34 +2,15 @@
 //! weights as its world model, planning on a thread of its own. Weights are checked whole and
 //! against the wire contract before they replace anything; a bad blob leaves the car as it was.
 
-use anyhow::ensure;
 use mtanet_control::{
     Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, PlanningSummary,
     Threaded, Tick,
 };
-use mtanet_ipc::{
-    ACTION_DIM, CONTROL_PERIOD_S, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation,
-};
-use mtanet_models::ModelConfig;
+use mtanet_ipc::{CONTROL_PERIOD_S, CommandSource, Observation};
 use mtanet_models::live::{Imagined, LiveModel};
 
 use crate::config::PredictorConfig;
-
-/// A checkpoint's network must read the frames and actions the simulator sends.
-pub fn check_wire_contract(cfg: &ModelConfig) -> anyhow::Result<()> {
-    ensure!(
-        (cfg.image_height, cfg.image_width) == (IMAGE_HEIGHT as i64, IMAGE_WIDTH as i64),
-        "the checkpoint's model takes {}x{} images, the simulator sends {IMAGE_HEIGHT}x{IMAGE_WIDTH}",
-        cfg.image_height,
-        cfg.image_width
-    );
-    ensure!(
-        cfg.action_dim == ACTION_DIM as i64,
-        "the checkpoint's model takes {} action values, the commands have {ACTION_DIM}",
-        cfg.action_dim
-    );
-    Ok(())
-}
+use crate::loader::{Prepared, prepare};
 
 pub fn source_of(driver: Driver) -> CommandSource {
     match driver {
@@ -113,7 +94,7 @@ impl Policy {
         self.install(prepare(bytes, version, probe)?)
     }
 
-    /// Takes in weights [`prepare`]d elsewhere: for the same network a copy in place (well under
+    /// Takes in weights [`prepare`]d on the loader's thread: for the same network a copy in place (well under
     /// a millisecond, the recurrent state carries on), otherwise a new model and planner.
     pub fn install(&mut self, p: Prepared) -> anyhow::Result<()> {
         let Prepared {
@@ -153,32 +134,6 @@ impl Policy {
         }
         Ok(())
     }
-}
-
-/// Weights decoded and checked, ready for [`Policy::install`].
-pub struct Prepared {
-    model: LiveModel,
-    imagined: Imagined,
-    pub version: u64,
-    probe: Option<f64>,
-    /// Time taken to decode and check them, ms.
-    pub decode_ms: f64,
-}
-
-/// Decodes and checks a checkpoint completely, on any thread (several ms for the default
-/// network: the weights loader does it off the control loop); nothing of a bad one is used.
-pub fn prepare(bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<Prepared> {
-    let t0 = std::time::Instant::now();
-    let model = LiveModel::from_bytes(bytes, version)?;
-    check_wire_contract(model.config())?;
-    let imagined = Imagined::from_bytes(bytes)?;
-    Ok(Prepared {
-        model,
-        imagined,
-        version,
-        probe: probe.is_finite().then_some(f64::from(probe)),
-        decode_ms: t0.elapsed().as_secs_f64() * 1e3,
-    })
 }
 
 /// The planner's thread: SCHED_FIFO at `priority` when it was made by a real-time thread (the
@@ -232,7 +187,7 @@ pub fn background_priority(nice: i32, what: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mtanet_models::{TrainConfig, Trainer};
+    use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 
     pub(crate) fn small_checkpoint(seed: u64, cfg: ModelConfig) -> Vec<u8> {
         Trainer::new(

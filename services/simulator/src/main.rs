@@ -7,7 +7,7 @@ use anyhow::Context;
 use clap::Parser;
 use mtanet_ipc::cli::CommonArgs;
 use mtanet_ipc::node::create_node;
-use mtanet_ipc::{logging, report, systemd};
+use mtanet_ipc::{logging, systemd};
 use mtanet_scenes::{Teacher, World};
 use mtanet_simulator::config::{Mode, SimulatorConfig};
 use mtanet_simulator::{service, standalone};
@@ -113,8 +113,7 @@ fn main() -> anyhow::Result<()> {
     tracing::info!(track = %scene.track.display(), length_m = world.track().length_m(), "world ready");
     if let Some(path) = &args.write_mjcf {
         // Written only after MuJoCo compiled it (World::new): what is on disk loads.
-        std::fs::write(path, world.mjcf())
-            .with_context(|| format!("writing the MJCF to {}", path.display()))?;
+        mtanet_files::write_bytes(path, world.mjcf().as_bytes())?;
         println!("{}: the scene of {}", path.display(), scene.track.display());
         return Ok(());
     }
@@ -137,7 +136,7 @@ fn main() -> anyhow::Result<()> {
         let path = args
             .report
             .expect("clap requires --report with --teacher-only");
-        report::write_json(&path, &rep).with_context(|| format!("writing {}", path.display()))?;
+        mtanet_files::write_json(&path, &rep)?;
         return Ok(());
     }
 

@@ -146,7 +146,6 @@ pub fn run(
             None => {
                 summary.missed_commands += 1;
                 if !lockstep {
-                    summary.deadline_misses += 1;
                     incident::record(
                         &mut summary.incidents,
                         step,
@@ -250,7 +249,7 @@ pub fn run(
             || step_time.summary(),
             |s| {
                 s.laps_or_driver_or_fill = drive.laps();
-                s.faults = summary.deadline_misses.min(u32::MAX as u64) as u32;
+                s.faults = summary.missed_commands.min(u32::MAX as u64) as u32;
             },
         )?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {

@@ -13,11 +13,9 @@ pub struct Summary {
     pub steps: u64,
     /// Steps driven by a command from the predictor for that very step.
     pub commands_received: u64,
-    /// Steps where a predictor was connected but its command did not come in time.
+    /// Steps where a predictor was connected but its command did not come within the wait
+    /// (`command_timeout_ms`, at most half a period in real time).
     pub missed_commands: u64,
-    /// Real time: steps whose command missed the deadline (the same count as `missed_commands`;
-    /// in lockstep, where nothing has a deadline, 0).
-    pub deadline_misses: u64,
     /// Commands that arrived for another step (late answers to earlier steps), dropped.
     pub stale_commands: u64,
     /// Non-finite commands rejected by the world.

@@ -4,7 +4,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ACTION_DIM, IMAGE_HEIGHT, IMAGE_WIDTH, WeightsHeader};
 use mtanet_models::Trainer;
 use mtanet_models::checkpoint::{CheckpointError, SCHEMA_VERSION};
@@ -17,6 +16,18 @@ use tch::Tensor;
 use crate::config::TrainerConfig;
 use crate::probe::Prober;
 use crate::replay::{Batch, ReplayBuffer};
+
+/// One training update, and the weights to publish after it when a publication was due.
+pub struct Update {
+    pub stats: UpdateStats,
+    pub publish: Option<Publication>,
+}
+
+/// Weights for the predictor: a whole checkpoint's bytes and the header that goes with them.
+pub struct Publication {
+    pub header: WeightsHeader,
+    pub bytes: Vec<u8>,
+}
 
 /// The newest checkpoint in `checkpoint_dir`, and the one before it.
 pub const LATEST: &str = "latest.safetensors";
@@ -86,6 +97,9 @@ pub struct Learner {
 impl Learner {
     /// Builds the model; resumes from `checkpoint_dir/latest.safetensors` when present.
     pub fn new(cfg: &TrainerConfig) -> anyhow::Result<Self> {
+        cfg.model
+            .check_wire((IMAGE_HEIGHT, IMAGE_WIDTH), ACTION_DIM)
+            .context("[trainer.model]")?;
         let mut trainer = Trainer::f_new(&cfg.model, &cfg.train)
             .context("building the model from [trainer.model]")?;
         if let Some(dir) = &cfg.checkpoint_dir {
@@ -145,14 +159,11 @@ impl Learner {
         self.trainer.cfg.frame_skip.max(1) as usize
     }
 
-    /// One update on a random batch of windows; probes and publishes when due. A refused
-    /// (non-finite) update is logged and counted, the weights stay as they were. `None` also
-    /// when the buffer holds no run of driving long enough for a window yet.
-    pub fn train_once(
-        &mut self,
-        buffer: &ReplayBuffer,
-        weights: &WeightsSender,
-    ) -> anyhow::Result<Option<UpdateStats>> {
+    /// One update on a random batch of windows; probes when due, and when a publication is due
+    /// returns it with the update (the service sends it). A refused (non-finite) update is
+    /// logged and counted, the weights stay as they were. `None` also when the buffer holds no
+    /// run of driving long enough for a window yet.
+    pub fn train_once(&mut self, buffer: &ReplayBuffer) -> anyhow::Result<Option<Update>> {
         let b = self.trainer.train_cfg.batch_size.max(1) as usize;
         let skip = self.frame_skip();
         let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip, self.mirror)
@@ -167,10 +178,12 @@ impl Learner {
                 if probe_due {
                     self.run_probe()?;
                 }
-                if probe_due || stats.step % self.publish_every == 0 {
-                    self.publish(weights)?;
-                }
-                Ok(Some(stats))
+                let publish = if probe_due || stats.step % self.publish_every == 0 {
+                    Some(self.publication()?)
+                } else {
+                    None
+                };
+                Ok(Some(Update { stats, publish }))
             }
             Err(
                 e @ (mtanet_models::train::TrainError::NonFiniteLoss { .. }
@@ -212,8 +225,9 @@ impl Learner {
         Ok(())
     }
 
-    /// Sends the current weights to the predictor (and to disk when configured).
-    pub fn publish(&mut self, weights: &WeightsSender) -> anyhow::Result<()> {
+    /// The current weights as the next version for the predictor, kept on disk first (when
+    /// configured) so that the disk never holds older weights than the predictor runs.
+    pub fn publication(&mut self) -> anyhow::Result<Publication> {
         let bytes = self
             .trainer
             .checkpoint_bytes(self.last_loss)
@@ -228,13 +242,11 @@ impl Learner {
             probe: self.trainer.probe.map_or(f32::NAN, |p| p.1 as f32),
             ..Default::default()
         };
-        weights.send(header, &bytes)?;
         // A full disk must not end the learning in memory: say so and keep training.
         if let Err(e) = self.save() {
             tracing::error!(path = ?self.checkpoint, "could not save the checkpoint: {e}");
         }
-        tracing::info!(version = self.version, step = self.trainer.step(), loss = ?self.last_loss, bytes = bytes.len(), "weights published");
-        Ok(())
+        Ok(Publication { header, bytes })
     }
 
     /// On a clean stop, keeps the updates made since the last publish (up to
@@ -344,6 +356,17 @@ mod tests {
             .err()
             .expect("a config mismatch is an error");
         assert!(format!("{e:#}").contains("configuration differs"), "{e:#}");
+    }
+
+    #[test]
+    fn a_network_off_the_wire_contract_is_refused_at_start() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut c = cfg(dir.path());
+        c.model.action_dim = 3;
+        let e = Learner::new(&c)
+            .err()
+            .expect("3 action values, commands have 2");
+        assert!(format!("{e:#}").contains("action values"), "{e:#}");
     }
 
     #[test]

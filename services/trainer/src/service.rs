@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::TrainerConfig;
 use crate::curve::{Curve, CurvePoint};
-use crate::learner::Learner;
+use crate::learner::{Learner, Publication, Update};
 use crate::replay::ReplayBuffer;
 
 pub struct Ports {
@@ -61,6 +61,20 @@ pub struct Summary {
     pub weights_published: u64,
     /// Wall time of one training update.
     pub update_time: LatencySummary,
+}
+
+/// Hands weights to the predictor.
+fn send(ports: &Ports, p: Publication) -> anyhow::Result<()> {
+    ports.weights.send(p.header, &p.bytes)?;
+    let h = p.header;
+    tracing::info!(
+        version = h.version,
+        step = h.train_step,
+        loss = h.loss,
+        bytes = p.bytes.len(),
+        "weights published"
+    );
+    Ok(())
 }
 
 /// Tells the simulator (pacing) how far training has come.
@@ -121,7 +135,7 @@ pub fn run_with(
     let replay_guard = waitset.attach_notification(ports.replay.listener())?;
     let mut buffer = ReplayBuffer::new(cfg.replay_capacity);
     if learner.has_trained_weights() {
-        learner.publish(&ports.weights)?;
+        send(ports, learner.publication()?)?;
     }
     let mut session = 0u64;
     let mut keep_pace = KeepPace::default();
@@ -161,7 +175,10 @@ pub fn run_with(
         waitset.wait_and_process_once_with_timeout(&mut on_event, timeout)?;
         if training && failure.is_none() {
             let t0 = Instant::now();
-            if let Some(u) = learner.train_once(&buffer, &ports.weights)? {
+            if let Some(Update { stats: u, publish }) = learner.train_once(&buffer)? {
+                if let Some(p) = publish {
+                    send(ports, p)?;
+                }
                 let took = t0.elapsed();
                 update_time.record_ns(took.as_nanos() as u64);
                 session += 1;

@@ -161,7 +161,7 @@ fn control_box(f: &mut ratatui::Frame, area: Rect, v: &View) {
     };
     let c = v.command;
     let laps = detail("simulator", "laps").map_or("-".into(), |x| x.to_string());
-    let misses = detail("simulator", "deadline_misses").map_or("-".into(), |x| x.to_string());
+    let misses = detail("simulator", "missed_commands").map_or("-".into(), |x| x.to_string());
     let fallbacks = detail("predictor", "fallbacks").map_or("-".into(), |x| x.to_string());
     let lines = vec![
         Line::from(vec![

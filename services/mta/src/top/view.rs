@@ -84,14 +84,9 @@ impl View {
         cmd.update(command.map(|c| c.step), now);
         replay.update(trainer.map(|t| t.chunks_received), now);
         weights.update(command.map(|c| c.model_version), now);
-        let p = |role: &str, k: &str| {
-            status
-                .processes
-                .get(role)
-                .and_then(|p| p.latency_us.get(k).copied())
-        };
-        push(&mut self.step_p99_us, p("simulator", "p99"));
-        push(&mut self.predictor_p99_us, p("predictor", "p99"));
+        let p99 = |role: &str| status.processes.get(role).map(|p| p.latency.p99_us);
+        push(&mut self.step_p99_us, p99("simulator"));
+        push(&mut self.predictor_p99_us, p99("predictor"));
         push(
             &mut self.model_ratio_milli,
             self.command.map(|c| f64::from(c.model_error_ratio) * 1e3),
