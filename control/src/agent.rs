@@ -214,9 +214,9 @@ impl Agent {
                 }
                 Mode::ActiveInference => plan = self.take_plan(t, plans),
                 Mode::Reactive | Mode::Fallback if self.arming => {
-                    // The takeover's first plan: active inference drives only with a fresh plan
-                    // in hand (a cold planner was late in real time, and holding the rule's
-                    // command for the segments after lost the line once in a bend).
+                    // Active inference takes the wheel only with a fresh plan in hand: without
+                    // one it would hold the rule's last command for whole segments, which can
+                    // leave the line in a bend.
                     self.arming = false;
                     if let Some(p) = self.fresh_plan(t, plans) {
                         tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");

@@ -1,12 +1,12 @@
-//! Drives an agent around a track in-process (no IPC): the same loop as the simulator service
-//! (sense, decide, apply for one control period; a car lost for `reset_after_lost_s` is put back
-//! as a new episode), with lap and lateral-error bookkeeping per driver.
+//! Drives an agent around a track in-process (no IPC), stepping the world through
+//! [`mtanet_scenes::Drive`] as the simulator service does, with lap and lateral-error
+//! bookkeeping per driver.
 
 use std::time::Instant;
 
 use hdrhistogram::Histogram;
 use mtanet_control::{Agent, AgentModel, AgentStats, Driver, PlanService, Tick};
-use mtanet_scenes::World;
+use mtanet_scenes::{Drive, ResetRule, World};
 use serde::{Deserialize, Serialize};
 
 use crate::oracle::SeesWorld;
@@ -114,29 +114,28 @@ where
     P: PlanService<M::Snapshot>,
 {
     let period = world.config().control_period_s;
-    let mut referee = mtanet_scenes::Referee::new(
-        cfg.reset_after_lost_s,
-        period,
-        cfg.lost_lateral_m,
-        cfg.reverse_reset_m,
-    );
+    let rule = ResetRule {
+        after_lost_s: cfg.reset_after_lost_s,
+        lost_lateral_m: cfg.lost_lateral_m,
+        reverse_m: cfg.reverse_reset_m,
+    };
+    let mut car = Drive::new(world, rule);
     let wall = Instant::now();
     let mut report = DriveReport::default();
     let mut plan_us = Histogram::<u64>::new(3)?;
     let (mut lat_reactive, mut lat_ai) = (Lateral::default(), Lateral::default());
-    let (mut episode, mut laps_before) = (0u32, 0u32);
     // Laps count under active inference only if it drove every step since the last lap.
     let mut lap_all_ai = false;
     let mut last_laps = 0u32;
-    for step in 0..cfg.max_steps {
-        let s = world.sense();
-        model.sees(world);
-        let applied = world.command().map(|v| v as f32);
+    while car.steps() < cfg.max_steps {
+        let f = car.sense();
+        let s = &f.sensors;
+        model.sees(car.world_mut());
         let tick = Tick {
-            episode,
+            episode: f.episode,
             frame: &s.image,
             line: s.line,
-            applied,
+            applied: f.applied,
             lockstep: true,
         };
         let d = agent.step(&tick, model, plans)?;
@@ -153,37 +152,30 @@ where
             lat_reactive.n += 1;
             lap_all_ai = false;
         }
-        if cfg.trace_every > 0 && step % cfg.trace_every == 0 {
+        if cfg.trace_every > 0 && f.step % cfg.trace_every == 0 {
             report.trace.push(TracePoint {
-                step,
+                step: f.step,
                 x: s.truth.x as f32,
                 y: s.truth.y as f32,
                 driver: d.driver,
             });
         }
-        if std::env::var_os("MTANET_DRIVE_DEBUG").is_some() {
-            eprintln!(
-                "{step} {:?} lat {:+.4} line {:?} wheels {:?} s {:.3}",
-                d.driver, s.truth.lateral_m, s.line, d.wheels, s.truth.track_s
-            );
-        }
-        world.step(d.wheels);
-        let laps = laps_before + world.truth().laps;
-        if laps > last_laps {
+        let stepped = car.step(d.wheels);
+        if stepped.laps > last_laps {
             if lap_all_ai {
-                report.laps_under_active_inference += laps - last_laps;
+                report.laps_under_active_inference += stepped.laps - last_laps;
             }
-            last_laps = laps;
+            last_laps = stepped.laps;
             lap_all_ai = true;
         }
-        report.steps = step + 1;
-        let verdict = referee.judge(&world.truth(), world.progress_m());
-        if verdict != mtanet_scenes::Verdict::Fine {
-            tracing::warn!(step, episode, ?verdict, "car put back at the start");
-            laps_before = laps;
-            world.reset();
-            referee.reset();
-            episode += 1;
+        report.steps = car.steps();
+        if let Some(verdict) = stepped.reset {
+            tracing::warn!(
+                step = f.step,
+                episode = f.episode,
+                ?verdict,
+                "car put back at the start"
+            );
             report.lost_events += 1;
             lap_all_ai = false;
         }
@@ -230,27 +222,22 @@ pub fn record_reactive(
         FrameShape::CAR,
         period as f32,
     );
-    let mut referee = mtanet_scenes::Referee::new(3.0, period, 0.1, 0.15);
+    let mut car = Drive::new(world, ResetRule::default());
     let (mut frames, mut applied) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
-    let mut episode = 0;
     while frames.len() < steps {
-        let s = world.sense();
-        let a = world.command().map(|v| v as f32);
+        let f = car.sense();
         let t = Tick {
-            episode,
-            frame: &s.image,
-            line: s.line,
-            applied: a,
+            episode: f.episode,
+            frame: &f.sensors.image,
+            line: f.sensors.line,
+            applied: f.applied,
             lockstep: true,
         };
         let d = agent.step(&t, &mut Blind, &mut NoPlans)?;
-        frames.push(s.image);
-        applied.push(a);
-        world.step(d.wheels);
-        if referee.judge(&world.truth(), world.progress_m()) != mtanet_scenes::Verdict::Fine {
-            world.reset();
-            referee.reset();
-            episode += 1;
+        frames.push(f.sensors.image);
+        applied.push(f.applied);
+        if car.step(d.wheels).reset.is_some() {
+            // A recording never spans a reset: start over.
             frames.clear();
             applied.clear();
         }

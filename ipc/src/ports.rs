@@ -134,7 +134,7 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
 /// Opens a service with this process's sizes (`shaped`), or, when it exists with other sizes
 /// (`DoesNotSupportRequested...`), as it is (`as_is`; the reason comes back for a warning). A
 /// Zenoh tunnel can remove and re-create the service between the two calls (`as_is` then finds
-/// none: seen in a clean-clone run): both are tried again, a few times, before giving up.
+/// none), so both are tried again, a few times, before giving up.
 pub(crate) fn open_shaped_or_as_is<F, E1: Debug, E2: Debug>(
     name: &str,
     mut shaped: impl FnMut() -> Result<F, E1>,

@@ -6,12 +6,14 @@
 //! - [`Track`]: a closed polyline loaded from `tracks/*.csv` and validated.
 //! - [`World`]: MJCF generated from the track, compiled and stepped with MuJoCo 3.17.
 //! - [`Sensors`]: camera image, line sensors, wheel velocities, ground truth for evaluation.
+//! - [`Drive`]: one car stepped round its track, lost cars put back as new episodes (no IPC).
 //! - [`Teacher`]: the classic line-tracer rule with seeded exploration noise.
 
 pub mod camera;
 pub mod car;
 mod config;
 mod cull;
+pub mod drive;
 pub mod mjcf;
 mod referee;
 mod teacher;
@@ -20,6 +22,7 @@ mod truth;
 mod world;
 
 pub use config::{SceneConfig, SceneError, shipped_track, tracks_dir};
+pub use drive::{Drive, ResetRule};
 pub use referee::{Referee, Verdict};
 pub use teacher::{Teacher, TeacherConfig};
 pub use track::{Track, TrackError};

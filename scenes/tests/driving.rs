@@ -229,3 +229,43 @@ fn middle_line_sensor_agrees_with_ground_truth() {
         );
     }
 }
+
+/// The loop core every driver steps through: a car reversing along the line is put back as a
+/// new episode within the reset window, and laps keep counting over episodes.
+#[test]
+fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes() {
+    use mtanet_scenes::{Drive, ResetRule, Verdict};
+    let mut w = World::new(&SceneConfig::default().with_track(shipped_track("oval"))).unwrap();
+    let mut t = Teacher::new(&TeacherConfig::default());
+    let rule = ResetRule::default();
+    let mut car = Drive::new(&mut w, rule);
+    let mut laps = 0;
+    // The teacher laps once...
+    while laps < 1 {
+        let f = car.sense();
+        let stepped = car.step(t.act(&f.sensors));
+        assert!(stepped.accepted && stepped.reset.is_none(), "{stepped:?}");
+        laps = stepped.laps;
+        assert!(car.steps() < 3000, "no lap in 60 s");
+    }
+    // ...then the car backs up along the line until it is put back at the start.
+    let window = (rule.after_lost_s / CONTROL_PERIOD_S) as u64;
+    let backing = car.steps();
+    let reset = loop {
+        let stepped = car.step([-8.0, -8.0]);
+        assert_eq!(stepped.laps, laps, "reversing completes no lap");
+        if let Some(v) = stepped.reset {
+            break v;
+        }
+        assert!(car.steps() - backing < 3 * window, "never put back");
+    };
+    assert_eq!(reset, Verdict::WrongWay);
+    assert_eq!(car.episode(), 1);
+    let f = car.sense();
+    assert_eq!((f.episode, f.step), (1, car.steps()));
+    assert!(f.time_s < 1e-9, "a new episode starts at time 0: {}", f.time_s);
+    // The lap of the first episode still counts after the reset.
+    t.reset();
+    let stepped = car.step(t.act(&f.sensors));
+    assert_eq!(stepped.laps, laps);
+}

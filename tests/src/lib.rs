@@ -9,6 +9,7 @@ mod stats_watch;
 
 use mtanet_mta::summary::SoakReport;
 
+pub use mtanet_mta::launch::{Run, plan};
 pub use mtanet_mta::stack::*;
 pub use proc::*;
 pub use stats_watch::StatsWatch;
@@ -16,6 +17,30 @@ pub use stats_watch::StatsWatch;
 /// This crate's folder (the test data and the shipped config are found from it).
 pub fn here() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A run of the default stack in namespace `ns`, each process's summary in `dir`.
+pub fn run_in(ns: &str, dir: &Path) -> Run {
+    Run {
+        namespace: Some(ns.into()),
+        summaries: Some(dir.into()),
+        ..Default::default()
+    }
+}
+
+/// Starts `binary` with the launch plan's arguments for `run`, then `extra`; its log in `log_dir`.
+pub fn start(binary: &str, run: &Run, extra: &[&str], log_dir: &Path) -> Proc {
+    let mut args = mtanet_mta::launch::args_of(binary, run);
+    args.extend(extra.iter().map(|a| a.to_string()));
+    Proc::spawn(binary, &args, log_dir)
+}
+
+/// Where the launch plan has `binary` write its summary.
+pub fn summary(run: &Run, binary: &str) -> PathBuf {
+    run.summaries
+        .as_ref()
+        .expect("a run with summaries")
+        .join(format!("{binary}.json"))
 }
 
 /// A one-minute real-time `mta soak` of the stack in `config`, from the committed checkpoint,

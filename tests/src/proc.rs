@@ -3,7 +3,7 @@
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
 
 use mtanet_ipc::node::NodeCensus;
@@ -56,29 +56,13 @@ impl Proc {
         log_dir: &Path,
         own_group: bool,
     ) -> std::io::Result<Proc> {
-        use std::os::unix::process::CommandExt;
         let log = log_dir.join(format!("{name}.log"));
-        let file = std::fs::File::create(&log)?;
-        let path = bin_dir().join(name);
-        let mut cmd = Command::new(&path);
-        if own_group {
-            cmd.process_group(0);
-        }
-        let child = cmd
-            .args(args)
-            .env(
-                "RUST_LOG",
-                std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
-            )
-            .stdout(Stdio::null())
-            .stderr(file)
+        let child = mtanet_mta::launch::command(name, args, None, own_group)
+            .stderr(std::fs::File::create(&log)?)
             .spawn()
             .map_err(|e| {
-                let hint = "build with `cargo build --release --workspace --bins`";
-                std::io::Error::new(
-                    e.kind(),
-                    format!("starting {}: {e} ({hint})", path.display()),
-                )
+                let hint = mtanet_mta::launch::missing_hint(name);
+                std::io::Error::new(e.kind(), format!("{hint}: {e}"))
             })?;
         Ok(Proc {
             name: name.into(),
@@ -176,9 +160,8 @@ pub fn wait_until(what: &str, timeout: Duration, mut done: impl FnMut() -> bool)
     }
 }
 
-/// Reads a JSON summary written by a service.
-pub fn read_json(path: &std::path::Path) -> serde_json::Value {
-    let text =
-        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("parsing {}: {e}", path.display()))
+/// Reads a JSON file the stack wrote, typed (a service's `Summary`, or `serde_json::Value` for
+/// a file whose type lives in a binary); panics naming the file and the field it cannot read.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> T {
+    mtanet_files::read_json(path).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -10,8 +10,33 @@ use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::stack::StackConfig;
 use mtanet_ipc::{Command, names};
+use mtanet_mta::launch::{Run, plan};
 use mtanet_mta::supervisor::{Event, Supervisor};
+use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::*;
+use mtanet_trainer::service::Summary as TrainerSummary;
+
+/// The step of the committed checkpoint the stack starts from.
+const START_STEP: u64 = 2351;
+
+/// The step of the trainer's next checkpoint on disk that differs from `after` (the trainer saves
+/// at every publish), keeping the supervisor polled meanwhile; panics after 90 s.
+fn next_save(ck: &Path, after: u64, sup: &mut Supervisor) -> u64 {
+    let latest = ck.join("latest.safetensors");
+    let t0 = Instant::now();
+    loop {
+        let step = mtanet_models::checkpoint::load(&latest).map_or(after, |c| c.meta.step);
+        if step != after {
+            return step;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(90),
+            "the trainer saved nothing after step {after}"
+        );
+        sup.poll().unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
 
 /// Waits until the simulator gets commands again: a command for a step at least 25 steps after
 /// the first one seen from now on (half a second of stepping), so the loop really runs.
@@ -56,14 +81,14 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     .unwrap();
     let stack = StackConfig::default();
     let mut sup = Supervisor::new(dir.path()).unwrap();
-    for spec in &stack.process {
-        let summary = dir.path().join(format!("{}.json", spec.binary));
-        let a: Vec<String> = ["--config", arg(&config), "--namespace", &ns]
-            .into_iter()
-            .chain(["--summary", arg(&summary)])
-            .map(String::from)
-            .collect();
-        sup.add(spec, a).unwrap();
+    let run = Run {
+        config: Some(config.clone()),
+        namespace: Some(ns.clone()),
+        summaries: Some(dir.path().to_owned()),
+        ..Default::default()
+    };
+    for launch in plan(&stack, &run) {
+        sup.add(&launch.spec, launch.args).unwrap();
     }
     for (k, p) in stack.process.iter().enumerate() {
         sup.start(&p.name).unwrap();
@@ -90,22 +115,15 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     );
 
     let mut times = Vec::new();
+    let mut saved_before_kill = 0;
     for victim in ["predictor", "trainer", "simulator"] {
         if victim == "trainer" {
             // Kill it once it has learnt and saved something of its own (publish = save).
-            let log = sup.log_path("mta-trainer");
-            let t0 = Instant::now();
-            while !std::fs::read_to_string(&log)
-                .unwrap_or_default()
-                .contains("weights published version=2")
-            {
-                assert!(
-                    t0.elapsed() < Duration::from_secs(90),
-                    "the trainer never published"
-                );
-                sup.poll().unwrap();
-                std::thread::sleep(Duration::from_millis(50));
-            }
+            saved_before_kill = next_save(&ck, START_STEP, &mut sup);
+            assert!(
+                saved_before_kill > START_STEP,
+                "the trainer saved nothing of its own"
+            );
         }
         let pid = sup.pid(victim).unwrap();
         let t0 = Instant::now();
@@ -152,38 +170,18 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     }
     println!("kill -9 -> restarted and 25 steps answered again: {times:?}");
     assert_eq!(sup.restarts().values().sum::<u32>(), 3);
-    let trainer_log = std::fs::read_to_string(sup.log_path("mta-trainer")).unwrap();
-    // The restarted trainer resumes at the step of its last publish (it saves then): it loses
-    // less than one checkpoint interval.
-    let step_of = |line: &str| -> Option<u64> {
-        line.split_whitespace()
-            .find_map(|w| w.strip_prefix("step="))
-            .and_then(|v| v.parse().ok())
-    };
-    let lines: Vec<&str> = trainer_log.lines().collect();
-    let resumed: Vec<usize> = (0..lines.len())
-        .filter(|&i| lines[i].contains("resumed training"))
-        .collect();
+    // The restarted trainer resumed from its last save, not from the committed checkpoint: its
+    // first save is past the one it was killed after (from the start it would be below it).
+    let resumed_save = next_save(&ck, saved_before_kill, &mut sup);
     assert!(
-        resumed.len() >= 2,
-        "the restarted trainer resumes from its checkpoint:\n{trainer_log}"
+        resumed_save > saved_before_kill,
+        "the restarted trainer saved step {resumed_save}, before its last save {saved_before_kill}"
     );
-    let at = step_of(lines[resumed[1]]).unwrap();
-    let last_published = lines[..resumed[1]]
-        .iter()
-        .filter(|l| l.contains("weights published"))
-        .filter_map(|l| step_of(l))
-        .last()
-        .unwrap_or(0);
-    assert!(
-        at >= last_published && at > 2351,
-        "resumed at {at}, last published {last_published}"
-    );
-    let predictor_log = std::fs::read_to_string(sup.log_path("mta-predictor")).unwrap();
-    assert!(
-        predictor_log.matches("weights loaded").count() >= 2,
-        "the restarted predictor got the newest weights at once:\n{predictor_log}"
-    );
+    // The restarted predictor got the newest weights at once: its model steps.
+    let predictor = sup.pid("predictor").unwrap();
+    StatsWatch::open(&ns).wait_for("predictor", Duration::from_secs(60), |s| {
+        s.pid == predictor && s.quality.is_finite()
+    });
 
     // `mta status` sees the restarted stack from its stats topic: every process once restarted,
     // stepping at 50 Hz (each process's first message has no rate yet: ask again).
@@ -258,21 +256,21 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
             "{name} did not stop cleanly: {ends:?}"
         );
     }
-    let sim = read_json(&dir.path().join("mta-simulator.json"));
-    let missed = sim["missed_commands"].as_u64().unwrap();
+    let sim: SimulatorSummary = read_json(&dir.path().join("mta-simulator.json"));
+    let missed = sim.missed_commands;
     assert!(
         (30..=80).contains(&missed),
         "1 s frozen at 50 Hz: about 50 steps missed, got {missed}"
     );
     assert_eq!(
-        sim["resets"], 0,
-        "the fallback kept the car on the line: {sim}"
+        sim.resets, 0,
+        "the fallback kept the car on the line: {sim:?}"
     );
-    let tr = read_json(&dir.path().join("mta-trainer.json"));
+    let tr: TrainerSummary = read_json(&dir.path().join("mta-trainer.json"));
     assert_eq!(
-        tr["steps_received"].as_u64().unwrap(),
-        20 * tr["chunks_received"].as_u64().unwrap(),
-        "only whole chunks reach the trainer: {tr}"
+        tr.steps_received,
+        20 * tr.chunks_received,
+        "only whole chunks reach the trainer: {tr:?}"
     );
     let c = nodes(&ns);
     assert!(

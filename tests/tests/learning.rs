@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 use mtanet_ipc::WeightsHeader;
 use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::weights_topic::WeightsSender;
+use mtanet_predictor::service::Summary as PredictorSummary;
 use mtanet_system_tests::*;
+use mtanet_trainer::service::Summary as TrainerSummary;
 
 /// A small network and eager publishing, so a test sees weights within seconds.
 const FAST_TRAINER: &str = r#"
@@ -46,27 +48,15 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("ln");
     let (cfg, ck_dir) = checkpointing_config(dir.path(), 2);
-    let (trs, prs) = (
-        dir.path().join("trainer.json"),
-        dir.path().join("predictor.json"),
-    );
-    let common = ["--namespace", &ns, "--config", arg(&cfg)];
-    let mut trainer = Proc::spawn(
-        "mta-trainer",
-        &[&common[..], &["--summary", arg(&trs)]].concat(),
-        dir.path(),
-    );
-    let mut predictor = Proc::spawn(
-        "mta-predictor",
-        &[&common[..], &["--summary", arg(&prs)]].concat(),
-        dir.path(),
-    );
+    let run = Run {
+        config: Some(cfg.clone()),
+        ..run_in(&ns, dir.path())
+    };
+    let mut trainer = start("mta-trainer", &run, &[], dir.path());
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
-    let mut sim = Proc::spawn(
-        "mta-simulator",
-        &[&common[..], &["--mode", "realtime"]].concat(),
-        dir.path(),
-    );
+    let mut sim = start("mta-simulator", &run, &["--mode", "realtime"], dir.path());
+    let stats = StatsWatch::open(&ns);
 
     assert!(
         predictor.wait_for_log("weights loaded", Duration::from_secs(120)),
@@ -116,7 +106,11 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
     // A restarted trainer resumes from disk and hands the predictor its weights at once.
     let t2_dir = dir.path().join("t2");
     std::fs::create_dir_all(&t2_dir).unwrap();
-    let mut trainer2 = Proc::spawn("mta-trainer", &common, &t2_dir);
+    let t2_run = Run {
+        config: Some(cfg.clone()),
+        ..run_in(&ns, &t2_dir)
+    };
+    let mut trainer2 = start("mta-trainer", &t2_run, &[], &t2_dir);
     assert!(
         trainer2.wait_for_log("resumed training", Duration::from_secs(60)),
         "{}",
@@ -142,7 +136,12 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
         "{}",
         trainer2.log_tail()
     );
-    std::thread::sleep(Duration::from_millis(300));
+    // Both still report after the trainer has gone.
+    let gone = mtanet_ipc::stamp::monotonic_ns();
+    for role in ["simulator", "predictor"] {
+        stats.wait_for(role, Duration::from_secs(10), |s| s.stamp_ns > gone);
+    }
+    drop(stats);
     assert!(
         sim.is_running() && predictor.is_running(),
         "a damaged checkpoint must not stop the stack"
@@ -161,21 +160,21 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
         predictor.log_tail()
     );
 
-    let t = read_json(&trs);
-    assert!(t["weights_published"].as_u64().unwrap() >= 1, "{t}");
-    assert!(t["updates"].as_u64().unwrap() >= 2, "{t}");
-    assert!(t["last_loss"].as_f64().unwrap().is_finite(), "{t}");
-    let p = read_json(&prs);
-    assert!(p["weights_received"].as_u64().unwrap() >= 3, "{p}");
-    assert_eq!(p["weights_rejected"], 1, "{p}");
-    let version = p["model_version"].as_u64().unwrap();
+    let t: TrainerSummary = read_json(&summary(&run, "mta-trainer"));
+    assert!(t.weights_published >= 1, "{t:?}");
+    assert!(t.updates >= 2, "{t:?}");
+    assert!(t.last_loss.unwrap().is_finite(), "{t:?}");
+    let p: PredictorSummary = read_json(&summary(&run, "mta-predictor"));
+    assert!(p.weights_received >= 3, "{p:?}");
+    assert_eq!(p.weights_rejected, 1, "{p:?}");
+    let version = p.model_version;
     assert!(
         (1..999).contains(&version),
-        "the damaged version must not be in use: {p}"
+        "the damaged version must not be in use: {p:?}"
     );
     assert!(
-        p["model_mse"].as_f64().is_some(),
-        "the loaded model must be stepped: {p}"
+        p.model_mse.is_some(),
+        "the loaded model must be stepped: {p:?}"
     );
     remove_namespace_files(&ns);
 }
@@ -187,27 +186,24 @@ fn a_stopped_trainer_saves_the_updates_it_had_not_published() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("sv");
     let (cfg, ck_dir) = checkpointing_config(dir.path(), 1_000_000);
-    let trs = dir.path().join("trainer.json");
-    let common = ["--namespace", &ns, "--config", arg(&cfg)];
-    let mut trainer = Proc::spawn(
-        "mta-trainer",
-        &[&common[..], &["--summary", arg(&trs)]].concat(),
-        dir.path(),
-    );
-    let mut predictor = Proc::spawn("mta-predictor", &common, dir.path());
+    let run = Run {
+        config: Some(cfg.clone()),
+        max_steps: Some(200),
+        ..run_in(&ns, dir.path())
+    };
+    let mut trainer = start("mta-trainer", &run, &[], dir.path());
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
-    let mut sim = Proc::spawn(
-        "mta-simulator",
-        &[&common[..], &["--max-steps", "200", "--expect-trainer"]].concat(),
-        dir.path(),
-    );
+    let stats = StatsWatch::open(&ns);
+    let mut sim = start("mta-simulator", &run, &["--expect-trainer"], dir.path());
     assert!(
         sim.wait(Duration::from_secs(120)).success(),
         "{}",
         sim.log_tail()
     );
     // 10 chunks are in; the tiny model makes an update in milliseconds.
-    std::thread::sleep(Duration::from_secs(2));
+    stats.wait_for("trainer", Duration::from_secs(30), |s| s.count >= 1);
+    drop(stats);
     let latest = ck_dir.join("latest.safetensors");
     assert!(!latest.exists(), "nothing should be saved before the stop");
     for p in [&predictor, &trainer] {
@@ -220,10 +216,10 @@ fn a_stopped_trainer_saves_the_updates_it_had_not_published() {
             p.log_tail()
         );
     }
-    let t = read_json(&trs);
-    assert_eq!(t["chunks_received"], 10, "{t}");
-    let updates = t["updates"].as_u64().unwrap();
-    assert!(updates >= 1, "the trainer never trained: {t}");
+    let t: TrainerSummary = read_json(&summary(&run, "mta-trainer"));
+    assert_eq!(t.chunks_received, 10, "{t:?}");
+    let updates = t.updates;
+    assert!(updates >= 1, "the trainer never trained: {t:?}");
     let saved = mtanet_models::checkpoint::load(&latest)
         .unwrap_or_else(|e| panic!("no checkpoint saved at stop: {e}"));
     assert_eq!(

@@ -132,7 +132,7 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         dir.path(),
     );
     let run = dir.path().join("run");
-    let report = read_json(&run.join("report.json"));
+    let report: serde_json::Value = read_json(&run.join("report.json"));
     let ai = report["control"]["active_inference_steps"]
         .as_u64()
         .unwrap();
@@ -140,7 +140,7 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         ai > 300,
         "active inference must drive in the recording: {report:#}"
     );
-    let rec = read_json(&run.join("recording.json"));
+    let rec: serde_json::Value = read_json(&run.join("recording.json"));
     assert_eq!(rec["messages"]["mtanet/observation"], 2000, "{rec:#}");
     assert_eq!(rec["messages"]["mtanet/command"], 2000, "{rec:#}");
     assert_eq!(rec["missed_observations"], 0, "{rec:#}");
@@ -185,7 +185,7 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         String::from_utf8_lossy(&out.stderr),
         predictor.log_tail()
     );
-    let s = read_json(&summary);
+    let s: serde_json::Value = read_json(&summary);
     println!("replay: {s}");
     assert_eq!(s["observations_sent"], 2000, "{s:#}");
     assert_eq!(s["compared"], 2000, "{s:#}");
@@ -210,7 +210,7 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let s = read_json(&summary);
+    let s: serde_json::Value = read_json(&summary);
     let sent = s["observations_sent"].as_u64().unwrap();
     assert!(sent > 0 && sent < 2000, "{s:#}");
     assert!(

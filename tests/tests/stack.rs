@@ -2,7 +2,10 @@
 
 use std::time::Duration;
 
+use mtanet_predictor::service::Summary as PredictorSummary;
+use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::*;
+use mtanet_trainer::service::Summary as TrainerSummary;
 
 const SIGTERM: i32 = libc::SIGTERM;
 const SIGKILL: i32 = libc::SIGKILL;
@@ -41,21 +44,12 @@ fn exit_ok(p: &mut Proc) {
 fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("lk");
-    let (trs, prs, sis) = (
-        dir.path().join("trainer.json"),
-        dir.path().join("predictor.json"),
-        dir.path().join("sim.json"),
-    );
-    let mut trainer = Proc::spawn(
-        "mta-trainer",
-        &["--namespace", &ns, "--summary", arg(&trs)],
-        dir.path(),
-    );
-    let mut predictor = Proc::spawn(
-        "mta-predictor",
-        &["--namespace", &ns, "--summary", arg(&prs)],
-        dir.path(),
-    );
+    let run = Run {
+        max_steps: Some(500),
+        ..run_in(&ns, dir.path())
+    };
+    let mut trainer = start("mta-trainer", &run, &[], dir.path());
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
     let c = wait_for_alive(&ns, 2, Duration::from_secs(30));
     assert_eq!(
         c.alive,
@@ -63,19 +57,7 @@ fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
         "peers did not come up"
     );
 
-    let mut sim = Proc::spawn(
-        "mta-simulator",
-        &[
-            "--namespace",
-            &ns,
-            "--max-steps",
-            "500",
-            "--expect-trainer",
-            "--summary",
-            arg(&sis),
-        ],
-        dir.path(),
-    );
+    let mut sim = start("mta-simulator", &run, &["--expect-trainer"], dir.path());
     let status = sim.wait(Duration::from_secs(120));
     assert!(
         status.success(),
@@ -89,26 +71,23 @@ fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
     exit_ok(&mut predictor);
     exit_ok(&mut trainer);
 
-    let s = read_json(&sis);
-    assert_eq!(s["steps"], 500);
+    let s: SimulatorSummary = read_json(&summary(&run, "mta-simulator"));
+    assert_eq!(s.steps, 500);
     assert_eq!(
-        s["commands_received"], 500,
-        "every step must get its own command: {s}"
+        s.commands_received, 500,
+        "every step must get its own command: {s:?}"
     );
-    assert_eq!(s["missed_commands"], 0, "{s}");
-    assert_eq!(s["teacher_steps"], 0, "{s}");
-    assert_eq!(s["replay_chunks_sent"], 25, "{s}");
-    assert!(s["round_trip"]["p50_us"].as_f64().unwrap() > 0.0, "{s}");
-    let p = read_json(&prs);
-    assert_eq!(p["commands_sent"], 500, "{p}");
-    assert_eq!(p["step_gaps"], 0, "{p}");
-    let t = read_json(&trs);
-    assert_eq!(
-        t["chunks_received"], 25,
-        "trainer must see every chunk: {t}"
-    );
-    assert_eq!(t["chunks_lost"], 0, "{t}");
-    assert_eq!(t["steps_received"], 500, "{t}");
+    assert_eq!(s.missed_commands, 0, "{s:?}");
+    assert_eq!(s.teacher_steps, 0, "{s:?}");
+    assert_eq!(s.replay_chunks_sent, 25, "{s:?}");
+    assert!(s.round_trip.p50_us > 0.0, "{s:?}");
+    let p: PredictorSummary = read_json(&summary(&run, "mta-predictor"));
+    assert_eq!(p.commands_sent, 500, "{p:?}");
+    assert_eq!(p.step_gaps, 0, "{p:?}");
+    let t: TrainerSummary = read_json(&summary(&run, "mta-trainer"));
+    assert_eq!(t.chunks_received, 25, "trainer must see every chunk: {t:?}");
+    assert_eq!(t.chunks_lost, 0, "{t:?}");
+    assert_eq!(t.steps_received, 500, "{t:?}");
     assert_namespace_clean(&ns);
 }
 
@@ -116,16 +95,11 @@ fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
 fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("kp");
-    let sis = dir.path().join("sim.json");
-    let p2s = dir.path().join("predictor2.json");
-    let mut trainer = Proc::spawn("mta-trainer", &["--namespace", &ns], dir.path());
-    let mut predictor = Proc::spawn("mta-predictor", &["--namespace", &ns], dir.path());
+    let run = run_in(&ns, dir.path());
+    let mut trainer = start("mta-trainer", &run, &[], dir.path());
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
-    let mut sim = Proc::spawn(
-        "mta-simulator",
-        &["--namespace", &ns, "--summary", arg(&sis)],
-        dir.path(),
-    );
+    let mut sim = start("mta-simulator", &run, &[], dir.path());
     let stats = StatsWatch::open(&ns);
     stats.wait_for("predictor", Duration::from_secs(30), |s| s.count > 0);
 
@@ -144,11 +118,8 @@ fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
         sim.log_tail()
     );
 
-    let mut predictor2 = Proc::spawn(
-        "mta-predictor",
-        &["--namespace", &ns, "--summary", arg(&p2s)],
-        dir.path(),
-    );
+    // The killed one wrote no summary: this one's is the only one.
+    let mut predictor2 = start("mta-predictor", &run, &[], dir.path());
     // libtorch takes a while to load under load: up to a minute for its first commands.
     let p2 = predictor2.pid() as u32;
     stats.wait_for("predictor", Duration::from_secs(60), |s| {
@@ -162,20 +133,20 @@ fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
     exit_ok(&mut predictor2);
     exit_ok(&mut trainer);
 
-    let s = read_json(&sis);
+    let s: SimulatorSummary = read_json(&summary(&run, "mta-simulator"));
     assert!(
-        s["missed_commands"].as_u64().unwrap() >= 1,
-        "the kill must show as missed commands: {s}"
+        s.missed_commands >= 1,
+        "the kill must show as missed commands: {s:?}"
     );
-    assert!(s["dead_nodes_cleaned"].as_u64().unwrap() >= 1, "{s}");
+    assert!(s.dead_nodes_cleaned >= 1, "{s:?}");
     assert!(
-        s["teacher_steps"].as_u64().unwrap() > 0,
-        "the teacher drives while no predictor lives: {s}"
+        s.teacher_steps > 0,
+        "the teacher drives while no predictor lives: {s:?}"
     );
-    let p2 = read_json(&p2s);
+    let p2: PredictorSummary = read_json(&summary(&run, "mta-predictor"));
     assert!(
-        p2["commands_sent"].as_u64().unwrap() > 0,
-        "the replacement predictor must take over: {p2}"
+        p2.commands_sent > 0,
+        "the replacement predictor must take over: {p2:?}"
     );
     assert_namespace_clean(&ns);
 }
@@ -184,22 +155,11 @@ fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
 fn realtime_stack_stops_cleanly_on_sigterm() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("rt");
-    let sis = dir.path().join("sim.json");
-    let mut trainer = Proc::spawn("mta-trainer", &["--namespace", &ns], dir.path());
-    let mut predictor = Proc::spawn("mta-predictor", &["--namespace", &ns], dir.path());
+    let run = run_in(&ns, dir.path());
+    let mut trainer = start("mta-trainer", &run, &[], dir.path());
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
-    let mut sim = Proc::spawn(
-        "mta-simulator",
-        &[
-            "--namespace",
-            &ns,
-            "--mode",
-            "realtime",
-            "--summary",
-            arg(&sis),
-        ],
-        dir.path(),
-    );
+    let mut sim = start("mta-simulator", &run, &["--mode", "realtime"], dir.path());
     let started = std::time::Instant::now();
     let stats = StatsWatch::open(&ns);
     stats.wait_for("simulator", Duration::from_secs(30), |s| s.count >= 50);
@@ -211,14 +171,14 @@ fn realtime_stack_stops_cleanly_on_sigterm() {
     let ran_s = started.elapsed().as_secs_f64();
     exit_ok(&mut predictor);
     exit_ok(&mut trainer);
-    let s = read_json(&sis);
-    let steps = s["steps"].as_u64().unwrap();
+    let s: SimulatorSummary = read_json(&summary(&run, "mta-simulator"));
+    let steps = s.steps;
     // Real time paces at 50 Hz: never more steps than 50 a second of the simulator's life.
     assert!(
         steps >= 50 && steps as f64 <= 50.0 * ran_s + 5.0,
         "real-time mode ran unpaced: {steps} steps in {ran_s:.2} s"
     );
-    assert!(s["commands_received"].as_u64().unwrap() > 0, "{s}");
+    assert!(s.commands_received > 0, "{s:?}");
     assert_namespace_clean(&ns);
 }
 
@@ -229,13 +189,12 @@ fn realtime_stack_stops_cleanly_on_sigterm() {
 fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("lg");
-    let trs = dir.path().join("trainer.json");
-    let mut trainer = Proc::spawn(
-        "mta-trainer",
-        &["--namespace", &ns, "--summary", arg(&trs)],
-        dir.path(),
-    );
-    let mut predictor = Proc::spawn("mta-predictor", &["--namespace", &ns], dir.path());
+    let run = Run {
+        max_steps: Some(200),
+        ..run_in(&ns, dir.path())
+    };
+    let mut trainer = start("mta-trainer", &run, &[], dir.path());
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
     // Frozen inside its loop, subscribed but not yet connected to any simulator.
     assert!(
@@ -244,11 +203,7 @@ fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
         trainer.log_tail()
     );
     trainer.signal(libc::SIGSTOP);
-    let mut sim = Proc::spawn(
-        "mta-simulator",
-        &["--namespace", &ns, "--max-steps", "200", "--expect-trainer"],
-        dir.path(),
-    );
+    let mut sim = start("mta-simulator", &run, &["--expect-trainer"], dir.path());
     assert!(
         sim.wait_for_log("lingering", Duration::from_secs(60)),
         "the simulator did not linger for its subscriber:\n{}",
@@ -261,7 +216,7 @@ fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
     }
     exit_ok(&mut trainer);
     exit_ok(&mut predictor);
-    let t = read_json(&trs);
-    assert_eq!(t["chunks_received"], 10, "{t}");
+    let t: TrainerSummary = read_json(&summary(&run, "mta-trainer"));
+    assert_eq!(t.chunks_received, 10, "{t:?}");
     assert_namespace_clean(&ns);
 }

@@ -13,7 +13,12 @@ use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::weights_topic::{WeightsReceiver, WeightsSender};
 use mtanet_ipc::{ReplayChunk, WeightsHeader, names, stamp};
-use mtanet_system_tests::{Proc, read_json, remove_namespace_files, unique_namespace};
+use mtanet_predictor::service::Summary as PredictorSummary;
+use mtanet_simulator::summary::Summary as SimulatorSummary;
+use mtanet_system_tests::{
+    Proc, Run, read_json, remove_namespace_files, run_in, start, summary, unique_namespace,
+};
+use mtanet_trainer::service::Summary as TrainerSummary;
 
 /// The topics that cross (ARCHITECTURE.md "Beyond one machine"); each names a publish-subscribe
 /// service and the event service that wakes its readers.
@@ -285,22 +290,15 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         ),
     )
     .unwrap();
-    let args = |ns: &str, name: &str| {
-        let summary = run.join(format!("{name}.json"));
-        vec![
-            "--config".to_string(),
-            config.to_string_lossy().into(),
-            "--namespace".into(),
-            ns.into(),
-            "--summary".into(),
-            summary.to_string_lossy().into(),
-        ]
-    };
-    let mut tr = Proc::spawn("mta-trainer", &args(&trainer, "trainer"), &run);
-    let mut pr = Proc::spawn("mta-predictor", &args(&robot, "predictor"), &run);
+    let [robot_run, trainer_run] = [&robot, &trainer].map(|ns| Run {
+        config: Some(config.clone()),
+        ..run_in(ns, &run)
+    });
+    let mut tr = start("mta-trainer", &trainer_run, &[], &run);
+    let mut pr = start("mta-predictor", &robot_run, &[], &run);
     // The tunnel's publisher does not hand its history to a subscriber that comes later (the
     // trainer's own does): the predictor gets the weights the trainer learns from here on.
-    let mut sim = Proc::spawn("mta-simulator", &args(&robot, "simulator"), &run);
+    let mut sim = start("mta-simulator", &robot_run, &[], &run);
     let full = |p: &Proc| std::fs::read_to_string(&p.log).unwrap_or_default();
     let reshaped = |p: &Proc| full(p).contains("other queue sizes");
     assert!(
@@ -321,28 +319,26 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
             );
         }
     }
-    let (sim, pr, tr) = (
-        read_json(&run.join("simulator.json")),
-        read_json(&run.join("predictor.json")),
-        read_json(&run.join("trainer.json")),
-    );
-    let sent = sim["replay_chunks_sent"].as_u64().unwrap();
-    let received = tr["chunks_received"].as_u64().unwrap();
+    let sim: SimulatorSummary = read_json(&summary(&robot_run, "mta-simulator"));
+    let pr: PredictorSummary = read_json(&summary(&robot_run, "mta-predictor"));
+    let tr: TrainerSummary = read_json(&summary(&trainer_run, "mta-trainer"));
+    let sent = sim.replay_chunks_sent;
+    let received = tr.chunks_received;
     println!(
         "stack across the tunnels: {sent} replay chunks sent, {received} received, {} trainer updates, {} weights published, {} received by the predictor",
-        tr["session_updates"], tr["weights_published"], pr["weights_received"]
+        tr.session_updates, tr.weights_published, pr.weights_received
     );
     assert!(
         sent >= 45 && received * 10 >= sent * 9,
-        "replay chunks crossed: {received} of {sent}\n{tr}"
+        "replay chunks crossed: {received} of {sent}\n{tr:?}"
     );
     assert!(
-        tr["session_updates"].as_u64() >= Some(10),
-        "the trainer learnt from them: {tr}"
+        tr.session_updates >= 10,
+        "the trainer learnt from them: {tr:?}"
     );
     assert!(
-        pr["weights_received"].as_u64() >= Some(1),
-        "weights it learnt came back: {pr}\n{}",
+        pr.weights_received >= 1,
+        "weights it learnt came back: {pr:?}\n{}",
         logs()
     );
     drop((a, b));

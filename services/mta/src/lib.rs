@@ -1,5 +1,6 @@
 //! Library side of the `mta` CLI: what its subcommands share with the system tests.
 
+pub mod launch;
 pub mod notify;
 pub mod stack;
 pub mod summary;

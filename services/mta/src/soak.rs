@@ -6,7 +6,7 @@
 //! ([`SoakReport`]) and `soak.png`, and prints a table with the targets.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -191,36 +191,17 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     // 2. The stack.
     let steps = (args.minutes * 60.0 / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
     let mut sup = Supervisor::new(&out)?;
-    let arg = |p: &Path| p.to_string_lossy().into_owned();
-    for spec in &stack.process {
-        let mut a = vec![
-            "--config".into(),
-            arg(&config),
-            "--namespace".into(),
-            ns.clone(),
-        ];
-        a.extend([
-            "--summary".into(),
-            arg(&out.join(format!("{}.json", spec.binary))),
-        ]);
-        a.extend(spec.args.iter().cloned());
-        match spec.binary.as_str() {
-            "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
-            // Drives from the checkpoint at once, not after the trainer's first publish.
-            "mta-predictor" => {
-                if let Some(ck) = &start_ck {
-                    a.extend(["--checkpoint".into(), arg(ck)]);
-                }
-            }
-            "mta-simulator" => a.extend([
-                "--track".into(),
-                arg(&track),
-                "--max-steps".into(),
-                steps.to_string(),
-            ]),
-            _ => {}
-        }
-        sup.add(spec, a)?;
+    let run = mtanet_mta::launch::Run {
+        config: Some(config.clone()),
+        namespace: Some(ns.clone()),
+        summaries: Some(out.clone()),
+        track: Some(track.clone()),
+        checkpoint: start_ck.clone(),
+        max_steps: Some(steps),
+        ..Default::default()
+    };
+    for launch in mtanet_mta::launch::plan(&stack, &run) {
+        sup.add(&launch.spec, launch.args)?;
     }
     // Each one ready (READY=1) before the next, as `mta up` starts them.
     let mut classes = BTreeMap::new();

@@ -7,9 +7,8 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
 use std::io::{BufRead, BufReader, Write};
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitStatus, Stdio};
+use std::process::{ExitStatus, Stdio};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -19,7 +18,6 @@ use mtanet_ipc::stack::ProcessSpec;
 use serde::Serialize;
 
 use crate::notify::NotifySocket;
-use crate::stack::bin_dir;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -140,45 +138,17 @@ impl Supervisor {
         let log_path = self.log_path(&self.children[i].spec.binary);
         let combined = Arc::clone(&self.combined);
         let c = &mut self.children[i];
-        let path = bin_dir().join(&c.spec.binary);
         let notify = NotifySocket::bind(&c.spec.name)?;
-        let mut cmd = Command::new(&path);
-        // Its own process group: a Ctrl-C at the terminal reaches only the supervisor, which
-        // stops each process with one signal (a second one makes it exit without clean-up).
-        cmd.process_group(0)
-            .args(&c.args)
-            .env(
-                "RUST_LOG",
-                std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
-            )
-            // The process reports it on the stats topic (`mta status`).
-            .env(mtanet_ipc::stats::RESTARTS_ENV, c.restarts.to_string())
+        let mut cmd =
+            crate::launch::command(&c.spec.binary, &c.args, c.spec.realtime_priority, true);
+        // The process reports it on the stats topic (`mta status`).
+        cmd.env(mtanet_ipc::stats::RESTARTS_ENV, c.restarts.to_string())
             // Its READY=1 (see `await_ready`); the units get the same from systemd.
             .env("NOTIFY_SOCKET", notify.path())
-            .stdout(Stdio::null())
             .stderr(Stdio::piped());
-        // Each child gets exactly the class of its spec, never the one of the thread that
-        // starts it (a real-time caller would make the trainer real-time too).
-        let prio = c.spec.realtime_priority;
-        // SAFETY: sched_setscheduler(2) is async-signal-safe; it only changes this child.
-        // A refusal (no privilege) is checked and reported from the parent below.
-        unsafe {
-            cmd.pre_exec(move || {
-                let (policy, p) = match prio {
-                    Some(p) => (libc::SCHED_FIFO, p),
-                    None => (libc::SCHED_OTHER, 0),
-                };
-                let param = libc::sched_param { sched_priority: p };
-                libc::sched_setscheduler(0, policy, &param);
-                Ok(())
-            });
-        }
-        let mut child = cmd.spawn().with_context(|| {
-            format!(
-                "starting {} (build with cargo build --release --workspace --bins)",
-                path.display()
-            )
-        })?;
+        let mut child = cmd
+            .spawn()
+            .with_context(|| crate::launch::missing_hint(&c.spec.binary))?;
         let pid = child.id();
         if let Some(prio) = c.spec.realtime_priority {
             // SAFETY: reads the policy of our own child.

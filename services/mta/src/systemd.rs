@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::stack::{ProcessSpec, StackConfig};
+use mtanet_mta::launch::{Launch, Run, plan};
 
 #[derive(Debug, clap::Args)]
 pub struct SystemdArgs {
@@ -26,13 +27,14 @@ pub struct SystemdArgs {
 }
 
 fn unit(
-    spec: &ProcessSpec,
+    launch: &Launch,
     after: Option<&ProcessSpec>,
     nice: Option<i32>,
     bin: &str,
     config: &str,
     user: &str,
 ) -> String {
+    let spec = &launch.spec;
     let r = &spec.restart;
     let mut u = String::new();
     let _ = writeln!(u, "# Rendered by `mta systemd` from [stack] in {config}.");
@@ -57,10 +59,10 @@ fn unit(
         "# READY=1 once its iceoryx2 ports exist; WATCHDOG=1 from the service loop."
     );
     let _ = writeln!(u, "Type=notify\nNotifyAccess=main");
-    let mut exec = format!("{bin}/{} --config {config}", spec.binary);
-    for a in &spec.args {
+    let mut exec = format!("{bin}/{}", spec.binary);
+    for a in &launch.args {
         exec.push(' ');
-        exec.push_str(a);
+        exec.push_str(&quoted(a));
     }
     let _ = writeln!(u, "ExecStart={exec}\nWatchdogSec={}", spec.watchdog_s);
     // The classes `mta up` gives (docs/measurements.md, "Sharing the CPU").
@@ -106,6 +108,15 @@ fn unit(
     u
 }
 
+/// An argument as systemd's ExecStart= reads it: quoted where it holds a space or a quote.
+fn quoted(a: &str) -> String {
+    if a.is_empty() || a.contains([' ', '\t', '"', '\'', '\\']) {
+        format!("\"{}\"", a.replace('\\', "\\\\").replace('"', "\\\""))
+    } else {
+        a.to_string()
+    }
+}
+
 pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
     let config = std::path::absolute(&args.config)?;
     let file = ConfigFile::load(Some(&config))?;
@@ -118,7 +129,13 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         .with_context(|| format!("creating {}", args.dest.display()))?;
     let (bin_s, cfg_s) = (bin.to_string_lossy(), config.to_string_lossy());
     let mut wants = Vec::new();
-    for (i, spec) in stack.process.iter().enumerate() {
+    // A unit runs the stack the config describes: its namespace, track and no summary files.
+    let run = Run {
+        config: Some(config.clone()),
+        ..Default::default()
+    };
+    for (i, launch) in plan(&stack, &run).iter().enumerate() {
+        let spec = &launch.spec;
         let exe = bin.join(&spec.binary);
         anyhow::ensure!(
             exe.exists(),
@@ -130,7 +147,7 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         let path = args.dest.join(&name);
         // The trainer lowers its own priority too; the unit says the same.
         let nice = (spec.binary == "mta-trainer").then_some(trainer.nice);
-        let text = unit(spec, after, nice, &bin_s, &cfg_s, &args.user);
+        let text = unit(launch, after, nice, &bin_s, &cfg_s, &args.user);
         mtanet_files::write_bytes(&path, text.as_bytes())?;
         println!("installed {}", path.display());
         wants.push(name);

@@ -154,43 +154,20 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         sup.add(&spec, a)?;
         order.push(spec.name.clone());
     }
-    for spec in &stack.process {
-        if args.no_learning && spec.binary == "mta-trainer" {
-            continue;
-        }
-        let mut a = vec![
-            "--config".into(),
-            arg(&config),
-            "--namespace".into(),
-            ipc.namespace.clone(),
-            "--summary".into(),
-            arg(&out.join(format!("{}.json", spec.binary))),
-        ];
-        a.extend(spec.args.iter().cloned());
-        match spec.binary.as_str() {
-            "mta-trainer" => a.extend(["--track".into(), arg(&track)]),
-            // Drives from the checkpoint at once, not after the trainer's first publish.
-            "mta-predictor" => {
-                if let Some(ck) = &start_ck {
-                    a.extend(["--checkpoint".into(), arg(ck)]);
-                }
-            }
-            "mta-simulator" => {
-                a.extend([
-                    "--track".into(),
-                    arg(&track),
-                    "--trace".into(),
-                    arg(&out.join("trace.csv")),
-                ]);
-                if args.sim_seconds > 0.0 {
-                    let steps = (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
-                    a.extend(["--max-steps".into(), steps.to_string()]);
-                }
-            }
-            _ => {}
-        }
-        sup.add(spec, a)?;
-        order.push(spec.name.clone());
+    let run = mtanet_mta::launch::Run {
+        config: Some(config.clone()),
+        namespace: Some(ipc.namespace.clone()),
+        summaries: Some(out.clone()),
+        track: Some(track.clone()),
+        checkpoint: start_ck.clone(),
+        trace: Some(out.join("trace.csv")),
+        max_steps: (args.sim_seconds > 0.0)
+            .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
+        no_trainer: args.no_learning,
+    };
+    for launch in mtanet_mta::launch::plan(&stack, &run) {
+        sup.add(&launch.spec, launch.args)?;
+        order.push(launch.spec.name);
     }
     // In order, each one ready (READY=1: ports open, loop running) before the next, as the
     // Type=notify units do: the simulator comes last and its first step finds its peers answering.

@@ -13,7 +13,7 @@ use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, TrainerStatus, names, stamp};
-use mtanet_scenes::{Referee, Sensors, Teacher, Verdict, World};
+use mtanet_scenes::{Drive, ResetRule, Sensors, Teacher, Verdict, World};
 
 use crate::chunk::ChunkBuilder;
 use crate::config::{MissPolicy, Mode, SimulatorConfig};
@@ -88,12 +88,13 @@ pub fn run(
     let start = Instant::now();
     let mut last_log = start;
     let mut step = 0u64;
-    let mut episode = 0u32;
-    let mut referee = Referee::new(
-        cfg.reset_after_lost_s,
-        period,
-        cfg.lost_lateral_m,
-        cfg.reverse_reset_m,
+    let mut car = Drive::new(
+        world,
+        ResetRule {
+            after_lost_s: cfg.reset_after_lost_s,
+            lost_lateral_m: cfg.lost_lateral_m,
+            reverse_m: cfg.reverse_reset_m,
+        },
     );
     while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
@@ -103,14 +104,14 @@ pub fn run(
             let due = start + Duration::from_secs_f64(step as f64 * period);
             tick_jitter.record_ns(t0.saturating_duration_since(due).as_nanos() as u64);
         }
-        let sensors = world.sense();
+        let frame = car.sense();
+        let (sensors, episode, applied) = (frame.sensors, frame.episode, frame.applied);
         drive.record(&sensors.truth);
-        let applied = world.command().map(|v| v as f32);
         let lockstep = cfg.mode == Mode::Lockstep;
         let obs = ObsMeta {
             step,
             episode,
-            time_s: world.time_s(),
+            time_s: frame.time_s,
             applied,
             lockstep,
         };
@@ -194,7 +195,8 @@ pub fn run(
                 applied_source,
             )?;
         }
-        if world.step(cmd) {
+        let stepped = car.step(cmd);
+        if stepped.accepted {
             last_cmd = cmd;
             applied_source = source;
         } else {
@@ -204,8 +206,7 @@ pub fn run(
                 "rejected a non-finite wheel command; keeping the last good one"
             );
         }
-        let verdict = referee.judge(&world.truth(), world.progress_m());
-        if verdict != Verdict::Fine {
+        if let Some(verdict) = stepped.reset {
             let why = match verdict {
                 Verdict::Lost => "car lost the line",
                 _ => "car drives the wrong way round",
@@ -213,17 +214,14 @@ pub fn run(
             tracing::warn!(
                 step,
                 episode,
-                lateral_m = world.truth().lateral_m,
+                lateral_m = sensors.truth.lateral_m,
                 "{why}: back to the start, new episode"
             );
-            world.reset();
             teacher.reset();
             drive.end_episode();
             control.end_episode();
             applied_source = CommandSource::Teacher; // the reset's zero command
             chunk.discard(); // a training sequence never spans a reset
-            episode += 1;
-            referee.reset();
             summary.resets += 1;
             if verdict == Verdict::WrongWay {
                 summary.wrong_way_resets += 1;
@@ -268,7 +266,7 @@ pub fn run(
     }
     summary.steps = step;
     summary.replay_chunks_sent = chunk.sent;
-    summary.rejected_commands = world.rejected_commands();
+    summary.rejected_commands = car.world().rejected_commands();
     summary.round_trip = round_trip.summary();
     summary.step_time = step_time.summary();
     summary.tick_late = tick_late.summary();

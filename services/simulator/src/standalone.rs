@@ -8,7 +8,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_scenes::{Teacher, World};
+use mtanet_scenes::{Drive, ResetRule, Teacher, World};
 use serde::{Deserialize, Serialize};
 
 use crate::drive_stats::{DriveStats, LateralError};
@@ -61,6 +61,12 @@ pub fn run(
             .expect("valid template"),
     );
     let start = Instant::now();
+    // The teacher never loses the line: a car put back would be a fault worth a test, not a rule.
+    let never = ResetRule {
+        after_lost_s: 0.0,
+        ..Default::default()
+    };
+    let mut car = Drive::new(world, never);
     let mut done = 0;
     for _ in 0..steps {
         if shutdown.requested() {
@@ -68,14 +74,13 @@ pub fn run(
             break;
         }
         let t0 = Instant::now();
-        let sensors = world.sense();
-        stats.record(&sensors.truth);
+        let f = car.sense();
+        stats.record(&f.sensors.truth);
         if let Some(rec) = recorder.as_mut() {
             // The command that led to this frame, as in the replay chunks.
-            rec.push(&sensors.image, world.command().map(|v| v as f32));
+            rec.push(&f.sensors.image, f.applied);
         }
-        let cmd = teacher.act(&sensors);
-        world.step(cmd);
+        car.step(teacher.act(&f.sensors));
         step_time.record_ns(t0.elapsed().as_nanos() as u64);
         done += 1;
         if done % 500 == 0 {
