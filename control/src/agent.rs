@@ -238,6 +238,17 @@ impl Agent {
                     // exploration segment or a search).
                     let may_resume =
                         self.found_ticks >= self.ticks(self.cfg.resume_after_s) && t.line[1];
+                    if may_resume && self.mode == Mode::Fallback && !self.trusted(&health) {
+                        // The line is found again but the model has lost its trust meanwhile:
+                        // the fallback's job is done, and the rule (exploring while learning)
+                        // drives until the model earns trust again.
+                        tracing::info!(
+                            segment = self.segment,
+                            ?health,
+                            "line found again; the world model is not trusted: the reactive rule drives"
+                        );
+                        self.mode = Mode::Reactive;
+                    }
                     if may_resume && self.cost.is_some() && self.trusted(&health) {
                         if !plans.idle() {
                             // A plan still out from before the fallback: its segment is past.

@@ -263,7 +263,11 @@ fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes()
     assert_eq!(car.episode(), 1);
     let f = car.sense();
     assert_eq!((f.episode, f.step), (1, car.steps()));
-    assert!(f.time_s < 1e-9, "a new episode starts at time 0: {}", f.time_s);
+    assert!(
+        f.time_s < 1e-9,
+        "a new episode starts at time 0: {}",
+        f.time_s
+    );
     // The lap of the first episode still counts after the reset.
     t.reset();
     let stepped = car.step(t.act(&f.sensors));

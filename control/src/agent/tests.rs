@@ -269,6 +269,51 @@ fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
 }
 
 #[test]
+fn a_fallback_ends_with_the_line_found_even_when_the_model_lost_its_trust_meanwhile() {
+    let frame = line_frame(6.0, 0.0);
+    let mut model = Toy::new(2, TRUSTED);
+    let mut plans = still_planner();
+    let mut a = agent(&cfg());
+    for _ in 0..30 {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    let floor = [0.85f32; 96];
+    for _ in 0..30 {
+        a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+    }
+    assert_eq!(a.stats.fallbacks, 1);
+    // A probe below the takeover's threshold came in meanwhile.
+    model.health.probe = Some(0.5);
+    let drivers: Vec<Driver> = (0..60)
+        .map(|_| {
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+                .unwrap()
+                .driver
+        })
+        .collect();
+    let fallback = drivers.iter().filter(|d| **d == Driver::Fallback).count();
+    assert!(
+        (24..=27).contains(&fallback),
+        "the fallback drives until the line is found for ~25 steps: {drivers:?}"
+    );
+    assert_eq!(drivers.last(), Some(&Driver::Reactive), "{drivers:?}");
+    assert!(!drivers.contains(&Driver::ActiveInference));
+    // Trusted again: active inference takes over from the rule.
+    model.health = TRUSTED;
+    let back = (0..20).any(|_| {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap()
+            .driver
+            == Driver::ActiveInference
+    });
+    assert!(back, "active inference takes over again once trusted");
+    assert_eq!(a.stats.fallbacks, 1);
+}
+
+#[test]
 fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
     let frame = line_frame(6.0, 0.0);
     let mut model = Toy::new(2, TRUSTED);
