@@ -30,6 +30,9 @@ pub struct ControlStats {
     steps: [u64; 5],
     lateral: [f64; 5],
     last: Option<CommandSource>,
+    /// The last source other than the teacher: a single missed command (the teacher's step)
+    /// inside a fallback or under active inference is no hand-over.
+    last_agent: Option<CommandSource>,
     switches: u64,
     fallbacks: u64,
     laps: u32,
@@ -45,13 +48,17 @@ impl ControlStats {
         self.steps[i] += 1;
         self.lateral[i] += lateral_m.abs();
         let ai = source == CommandSource::ActiveInference;
-        if let Some(last) = self.last
-            && (last == CommandSource::ActiveInference) != ai
-        {
-            self.switches += 1;
-        }
-        if source == CommandSource::Fallback && self.last != Some(CommandSource::Fallback) {
-            self.fallbacks += 1;
+        if source != CommandSource::Teacher {
+            if let Some(last) = self.last_agent
+                && (last == CommandSource::ActiveInference) != ai
+            {
+                self.switches += 1;
+            }
+            if source == CommandSource::Fallback && self.last_agent != Some(CommandSource::Fallback)
+            {
+                self.fallbacks += 1;
+            }
+            self.last_agent = Some(source);
         }
         if !ai {
             self.lap_all_ai = false;
@@ -133,5 +140,23 @@ mod tests {
         assert_eq!(s.steps["active_inference"], 6);
         assert!((s.lateral_mean_m["fallback"] - 0.03).abs() < 1e-12);
         assert!(!s.lateral_mean_m.contains_key("teacher"));
+    }
+
+    #[test]
+    fn a_missed_command_is_no_hand_over() {
+        let mut c = ControlStats::default();
+        for src in [
+            ActiveInference,
+            Teacher,
+            ActiveInference,
+            Fallback,
+            Teacher,
+            Fallback,
+        ] {
+            c.record(src, 0.01, 0);
+        }
+        let s = c.summary();
+        assert_eq!((s.switches, s.fallbacks), (1, 1), "{s:?}");
+        assert_eq!(s.steps["teacher"], 2);
     }
 }

@@ -5,7 +5,7 @@
 
 use std::collections::VecDeque;
 
-use mtanet_ipc::{ACTION_DIM, CommandSource, IMAGE_PIXELS, ReplayChunk};
+use mtanet_ipc::{ACTION_DIM, CommandSource, IMAGE_PIXELS, REPLAY_STEPS, ReplayChunk};
 use mtanet_models::sequences::{push_window, window_span};
 use rand::Rng;
 
@@ -16,9 +16,27 @@ struct Chunk {
     actions: Vec<[f32; ACTION_DIM]>,
 }
 
+impl Chunk {
+    /// A slot with room for a whole chunk, its memory written once so that it is resident.
+    fn slot() -> Self {
+        let mut images = vec![[0.0; IMAGE_PIXELS]; REPLAY_STEPS];
+        let mut actions = vec![[0.0; ACTION_DIM]; REPLAY_STEPS];
+        images.clear();
+        actions.clear();
+        Self {
+            first_step: 0,
+            episode: 0,
+            images,
+            actions,
+        }
+    }
+}
+
 pub struct ReplayBuffer {
     capacity: usize,
     chunks: VecDeque<Chunk>,
+    /// Slots not yet filled.
+    free: Vec<Chunk>,
     received: u64,
     /// Steps in all chunks received (a chunk's `len`).
     steps_received: u64,
@@ -39,10 +57,14 @@ pub struct Batch {
 }
 
 impl ReplayBuffer {
+    /// Every slot is allocated here, up front: filling the buffer and then replacing its
+    /// oldest chunks allocates nothing, so the trainer's memory stays flat through a long run.
     pub fn new(capacity: usize) -> Self {
+        let capacity = capacity.max(1);
         Self {
-            capacity: capacity.max(1),
-            chunks: VecDeque::new(),
+            capacity,
+            chunks: VecDeque::with_capacity(capacity),
+            free: (0..capacity).map(|_| Chunk::slot()).collect(),
             received: 0,
             steps_received: 0,
             steps_by_source: [0; 6],
@@ -76,15 +98,17 @@ impl ReplayBuffer {
         for &s in &c.sources[..len] {
             self.steps_by_source[(s as usize).min(5)] += 1;
         }
-        if self.chunks.len() == self.capacity {
-            self.chunks.pop_front();
-        }
-        self.chunks.push_back(Chunk {
-            first_step: c.first_step,
-            episode: c.episode,
-            images: c.images[..len].to_vec(),
-            actions: c.actions[..len].to_vec(),
-        });
+        let mut slot = match self.free.pop() {
+            Some(slot) => slot,
+            None => self.chunks.pop_front().expect("a full buffer holds chunks"),
+        };
+        slot.first_step = c.first_step;
+        slot.episode = c.episode;
+        slot.images.clear();
+        slot.images.extend_from_slice(&c.images[..len]);
+        slot.actions.clear();
+        slot.actions.extend_from_slice(&c.actions[..len]);
+        self.chunks.push_back(slot);
     }
 
     /// Chunks held.
@@ -240,6 +264,27 @@ mod tests {
             };
         }
         c
+    }
+
+    #[test]
+    fn slots_are_allocated_once_and_reused_when_full() {
+        let mut b = ReplayBuffer::new(3);
+        let at = |b: &ReplayBuffer| -> Vec<*const [f32; IMAGE_PIXELS]> {
+            b.chunks.iter().map(|c| c.images.as_ptr()).collect()
+        };
+        for k in 0..3 {
+            b.push(&chunk(k, k * 20, 0));
+        }
+        let mut first = at(&b);
+        for k in 3..9 {
+            b.push(&chunk(k, k * 20, 0));
+        }
+        let mut later = at(&b);
+        first.sort();
+        later.sort();
+        assert_eq!(first, later, "the same three slots, refilled");
+        assert_eq!(b.chunks[0].first_step, 120, "the newest three chunks");
+        assert_eq!(b.chunks[2].images[19], [179.0; IMAGE_PIXELS]);
     }
 
     #[test]
