@@ -33,7 +33,6 @@ impl Chunk {
 }
 
 pub struct ReplayBuffer {
-    capacity: usize,
     chunks: VecDeque<Chunk>,
     /// Slots not yet filled.
     free: Vec<Chunk>,
@@ -62,7 +61,6 @@ impl ReplayBuffer {
     pub fn new(capacity: usize) -> Self {
         let capacity = capacity.max(1);
         Self {
-            capacity,
             chunks: VecDeque::with_capacity(capacity),
             free: (0..capacity).map(|_| Chunk::slot()).collect(),
             received: 0,
