@@ -238,7 +238,8 @@ impl Agent {
                     // exploration segment or a search).
                     let may_resume =
                         self.found_ticks >= self.ticks(self.cfg.resume_after_s) && t.line[1];
-                    if may_resume && self.mode == Mode::Fallback && !self.trusted(&health) {
+                    let trusted = self.trusted(&health);
+                    if may_resume && self.mode == Mode::Fallback && !trusted {
                         // The line is found again but the model has lost its trust meanwhile:
                         // the fallback's job is done, and the rule (exploring while learning)
                         // drives until the model earns trust again.
@@ -249,7 +250,7 @@ impl Agent {
                         );
                         self.mode = Mode::Reactive;
                     }
-                    if may_resume && self.cost.is_some() && self.trusted(&health) {
+                    if may_resume && self.cost.is_some() && trusted {
                         if !plans.idle() {
                             // A plan still out from before the fallback: its segment is past.
                             let _ = plans.wait(self.drain_wait(t.lockstep));

@@ -210,17 +210,23 @@ fn drives_by_rule_until_trusted_then_plans_and_holds_each_segment() {
     assert!(d.turn.abs() < 2.0 && d.speed > 5.0, "{d:?}");
 }
 
+/// An agent that took the wheel with a trusted model, the line centred in `frame`.
+fn under_active_inference(frame: &[f32], model: &mut Toy, plans: &mut Inline<Still>) -> Agent {
+    let mut a = agent(&cfg());
+    for _ in 0..30 {
+        a.step(&tick(frame, CENTRED, [8.0; 2]), model, plans)
+            .unwrap();
+    }
+    assert!(a.driving_by_active_inference());
+    a
+}
+
 #[test]
 fn losing_the_line_hands_over_to_the_fallback_until_it_is_seen_again() {
     let frame = line_frame(6.0, 0.0);
     let mut model = Toy::new(2, TRUSTED);
     let mut plans = still_planner();
-    let mut a = agent(&cfg());
-    for _ in 0..30 {
-        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
-            .unwrap();
-    }
-    assert!(a.driving_by_active_inference());
+    let mut a = under_active_inference(&frame, &mut model, &mut plans);
     // The bar off the line while the camera still sees it (cutting a bend): not lost.
     for _ in 0..40 {
         a.step(&tick(&frame, [false; 3], [8.0; 2]), &mut model, &mut plans)
@@ -273,12 +279,7 @@ fn a_fallback_ends_with_the_line_found_even_when_the_model_lost_its_trust_meanwh
     let frame = line_frame(6.0, 0.0);
     let mut model = Toy::new(2, TRUSTED);
     let mut plans = still_planner();
-    let mut a = agent(&cfg());
-    for _ in 0..30 {
-        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
-            .unwrap();
-    }
-    assert!(a.driving_by_active_inference());
+    let mut a = under_active_inference(&frame, &mut model, &mut plans);
     let floor = [0.85f32; 96];
     for _ in 0..30 {
         a.step(&tick(&floor, [false; 3], [8.0; 2]), &mut model, &mut plans)

@@ -87,7 +87,6 @@ pub fn run(
     };
     let start = Instant::now();
     let mut last_log = start;
-    let mut step = 0u64;
     let mut car = Drive::new(
         world,
         ResetRule {
@@ -96,7 +95,8 @@ pub fn run(
             reverse_m: cfg.reverse_reset_m,
         },
     );
-    while !shutdown.requested() && (cfg.max_steps == 0 || step < cfg.max_steps) {
+    while !shutdown.requested() && (cfg.max_steps == 0 || car.steps() < cfg.max_steps) {
+        let step = car.steps();
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = Instant::now();
         let t0_ns = stamp::monotonic_ns();
@@ -234,16 +234,16 @@ pub fn run(
             summary.overruns += 1;
             incident::record(&mut summary.incidents, step, IncidentKind::Overrun, t0_ns);
         }
-        step += 1;
+        let done = car.steps();
         if cfg.mode == Mode::Realtime {
-            let next = start + Duration::from_secs_f64(step as f64 * period);
+            let next = start + Duration::from_secs_f64(done as f64 * period);
             let late = Instant::now().saturating_duration_since(next);
             tick_late.record_ns(late.as_nanos() as u64);
             std::thread::sleep(next.saturating_duration_since(Instant::now()));
         }
         watchdog.pet();
         ports.stats.borrow_mut().tick(
-            step,
+            done,
             || step_time.summary(),
             |s| {
                 s.laps_or_driver_or_fill = drive.laps();
@@ -253,7 +253,7 @@ pub fn run(
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             tracing::info!(
-                step,
+                step = done,
                 laps = drive.laps(),
                 laps_ai = control.laps_under_active_inference(),
                 driver = applied_source.name(),
@@ -264,6 +264,7 @@ pub fn run(
             );
         }
     }
+    let step = car.steps();
     summary.steps = step;
     summary.replay_chunks_sent = chunk.sent;
     summary.rejected_commands = car.world().rejected_commands();
