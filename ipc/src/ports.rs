@@ -134,7 +134,7 @@ fn open_pubsub<T: Debug + ZeroCopySend>(
 /// Opens a service with this process's sizes (`shaped`), or, when it exists with other sizes
 /// (`DoesNotSupportRequested...`), as it is (`as_is`; the reason comes back for a warning). A
 /// Zenoh tunnel can remove and re-create the service between the two calls (`as_is` then finds
-/// none), so both are tried again, a few times, before giving up.
+/// none, or one marked for destruction), so both are tried again, a few times, before giving up.
 pub(crate) fn open_shaped_or_as_is<F, E1: Debug, E2: Debug>(
     name: &str,
     mut shaped: impl FnMut() -> Result<F, E1>,
@@ -154,12 +154,14 @@ pub(crate) fn open_shaped_or_as_is<F, E1: Debug, E2: Debug>(
         };
         match as_is() {
             Ok(f) => return Ok((f, Some(format!("{e:?}")))),
-            Err(e2) if attempt < ATTEMPTS && format!("{e2:?}").contains("DoesNotExist") => {
+            Err(e2) if attempt < ATTEMPTS && vanishing(&e2) => {
                 tracing::debug!(
                     service = name,
                     attempt,
                     "the service vanished between two opens; again"
                 );
+                // Its removal may still be under way: give it a moment (start-up only).
+                std::thread::sleep(std::time::Duration::from_millis(5));
             }
             Err(e2) => {
                 return Err(PortError::Open {
@@ -170,6 +172,12 @@ pub(crate) fn open_shaped_or_as_is<F, E1: Debug, E2: Debug>(
         }
     }
     unreachable!("the loop returns")
+}
+
+/// True when the service is gone or being removed (a tunnel re-creating it): worth another try.
+fn vanishing(e: &impl Debug) -> bool {
+    let e = format!("{e:?}");
+    e.contains("DoesNotExist") || e.contains("IsMarkedForDestruction")
 }
 
 /// True when opening failed only because the existing service has other (smaller) sizes than
