@@ -118,6 +118,18 @@ impl Agent {
         self.mode == Mode::ActiveInference
     }
 
+    /// Whether weights whose probe is `probe` may replace the model in hand. While the model in
+    /// hand drives (active inference or its fallback), weights below `distrust_probe` are held
+    /// back and the ones in hand go on driving: the probe of weights learning from the car's
+    /// own plans dips for minutes at a time, and installing them would hand the wheel back to
+    /// the rule for a model the trainer may well mend. The trust then ends by the model's own
+    /// error (`distrust_ratio`) or a lost line, never by a dip it did not take part in.
+    pub fn admits(&self, probe: Option<f64>) -> bool {
+        self.mode == Mode::Reactive
+            || self.cfg.min_probe <= -1.0
+            || probe.is_none_or(|p| p >= self.cfg.distrust_probe.min(self.cfg.min_probe))
+    }
+
     fn ticks(&self, seconds: f32) -> u32 {
         (seconds / self.control_period_s).round().max(1.0) as u32
     }

@@ -85,18 +85,28 @@ impl Policy {
             .with_context(|| format!("the checkpoint {}", path.display()))?;
         let probe = ck.meta.probe.map_or(f32::NAN, |p| p as f32);
         self.load_weights(&bytes, 0, probe)
+            .map(drop)
             .with_context(|| format!("the checkpoint {}", path.display()))
     }
 
     /// New weights from the trainer (`probe`: its counterfactual probe, NaN if none), decoded
     /// here. Returns the error if they were refused; the previous model then keeps driving.
-    pub fn load_weights(&mut self, bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<()> {
+    pub fn load_weights(
+        &mut self,
+        bytes: &[u8],
+        version: u64,
+        probe: f32,
+    ) -> anyhow::Result<Install> {
         self.install(prepare(bytes, version, probe)?)
     }
 
     /// Takes in weights [`prepare`]d on the loader's thread: for the same network a copy in place (well under
-    /// a millisecond, the recurrent state carries on), otherwise a new model and planner.
-    pub fn install(&mut self, p: Prepared) -> anyhow::Result<()> {
+    /// a millisecond, the recurrent state carries on), otherwise a new model and planner. Weights
+    /// whose probe failed are held back while the model in hand drives ([`Agent::admits`]).
+    pub fn install(&mut self, p: Prepared) -> anyhow::Result<Install> {
+        if self.model.is_some() && !self.agent.admits(p.probe) {
+            return Ok(Install::HeldBack);
+        }
         let Prepared {
             model: mut fresh,
             mut imagined,
@@ -132,8 +142,16 @@ impl Policy {
         if let Some(m) = self.model.as_mut() {
             m.probe = probe;
         }
-        Ok(())
+        Ok(Install::Installed)
     }
+}
+
+/// What became of weights offered to [`Policy::install`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Install {
+    Installed,
+    /// Their probe failed while the model in hand drives: that one goes on driving.
+    HeldBack,
 }
 
 /// The planner's thread: SCHED_FIFO at `priority` when it was made by a real-time thread (the

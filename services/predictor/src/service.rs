@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::PredictorConfig;
 use crate::loader::Loader;
-use crate::policy::{Policy, source_of};
+use crate::policy::{Install, Policy, source_of};
 
 pub struct Ports {
     pub observations: Receiver<Observation>,
@@ -48,6 +48,9 @@ pub struct Summary {
     pub weights_received: u64,
     /// Weights that failed to decode or did not fit; the previous model stayed in use.
     pub weights_rejected: u64,
+    /// Weights whose probe failed while the model in hand drove: that one kept driving.
+    #[serde(default)]
+    pub weights_held_back: u64,
     pub model_version: u64,
     /// Who drove, switches, fallbacks, plans (late ones included).
     pub control: AgentStats,
@@ -288,11 +291,19 @@ fn install_weights(
     while let Some((version, prepared)) = loader.try_take() {
         let t0 = Instant::now();
         let outcome = prepared.and_then(|p| {
-            let decode_ms = p.decode_ms;
-            policy.install(p).map(|()| decode_ms)
+            let (decode_ms, probe) = (p.decode_ms, p.probe);
+            policy.install(p).map(|i| (i, decode_ms, probe))
         });
         match outcome {
-            Ok(decode_ms) => {
+            Ok((Install::HeldBack, _, probe)) => {
+                summary.weights_held_back += 1;
+                tracing::info!(
+                    version,
+                    ?probe,
+                    "weights held back: their probe failed while the model in hand drives"
+                );
+            }
+            Ok((Install::Installed, decode_ms, _)) => {
                 summary.model_version = version;
                 let install_ms = t0.elapsed().as_secs_f64() * 1e3;
                 let probe = policy.model.as_ref().and_then(|m| m.probe);

@@ -66,6 +66,26 @@ fn takes_over_only_with_the_car_on_the_line() {
 }
 
 #[test]
+fn weights_that_fail_their_probe_wait_while_the_model_in_hand_drives() {
+    let frame = line_frame(6.0, 0.0);
+    let mut model = Toy::new(1, TRUSTED);
+    let mut plans = still_planner();
+    let mut a = agent(&cfg());
+    assert!(
+        a.admits(Some(0.2)),
+        "the rule drives: any weights may be tried"
+    );
+    while !a.driving_by_active_inference() {
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        assert!(a.stats.reactive_steps < 100, "no takeover");
+    }
+    assert!(!a.admits(Some(0.5)), "below distrust_probe (0.55)");
+    assert!(a.admits(Some(0.6)), "between the thresholds: hysteresis");
+    assert!(a.admits(None), "weights never probed are not judged");
+}
+
+#[test]
 fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
     let frame = line_frame(6.0, 0.0);
     let low_probe = Health {
