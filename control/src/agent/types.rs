@@ -33,11 +33,9 @@ pub struct AgentConfig {
     /// ...after this many model steps since its weights were loaded...
     pub trust_after_steps: u64,
     /// ...and its counterfactual probe (rank correlation) is at least this (-1: not needed).
+    /// While the model in hand drives, newer weights must pass it too or they wait
+    /// ([`crate::Agent::admits`]).
     pub min_probe: f64,
-    /// Once trusted, a later probe must fall below this to end the trust (hysteresis: the probe
-    /// of weights still learning online swings by ~0.1, 0.68-0.82 in a 5-minute run, and a
-    /// single threshold handed the car back and forth with it).
-    pub distrust_probe: f64,
     /// Stop trusting it when its error has stayed above `distrust_ratio` x copy-last for
     /// `distrust_after_steps` model steps (the ratio swings when the car slows down: copying
     /// the last frame is then nearly right).
@@ -74,7 +72,6 @@ impl Default for AgentConfig {
             trust_ratio: 0.8,
             trust_after_steps: 25,
             min_probe: 0.7,
-            distrust_probe: 0.55,
             distrust_ratio: 1.5,
             distrust_after_steps: 50,
             fallback_after_s: 0.5,

@@ -80,13 +80,13 @@ fn weights_that_fail_their_probe_wait_while_the_model_in_hand_drives() {
             .unwrap();
         assert!(a.stats.reactive_steps < 100, "no takeover");
     }
-    assert!(!a.admits(Some(0.5)), "below distrust_probe (0.55)");
-    assert!(a.admits(Some(0.6)), "between the thresholds: hysteresis");
+    assert!(!a.admits(Some(0.6)), "below min_probe (0.7)");
+    assert!(a.admits(Some(0.7)));
     assert!(a.admits(None), "weights never probed are not judged");
 }
 
 #[test]
-fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
+fn distrust_needs_a_sustained_bad_model_and_the_probe_gates_trust() {
     let frame = line_frame(6.0, 0.0);
     let low_probe = Health {
         probe: Some(0.2),
@@ -110,31 +110,10 @@ fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
             .unwrap();
     }
     assert!(a.driving_by_active_inference());
-    // A probe that dips below min_probe but not below distrust_probe keeps the trust...
-    model.health.probe = Some(0.6);
-    a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
-        .unwrap();
-    assert!(
-        a.driving_by_active_inference(),
-        "hysteresis: 0.6 is above 0.55"
-    );
-    // ...one below it ends it, and only min_probe brings it back.
+    // The probe of the model in hand is what the trust was earned with: it is not judged again
+    // (newer weights that fail it wait instead, see `weights_that_fail_...`).
     model.health.probe = Some(0.5);
-    a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
-        .unwrap();
-    assert!(!a.driving_by_active_inference(), "below distrust_probe");
-    model.health.probe = Some(0.6);
     for _ in 0..5 {
-        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
-            .unwrap();
-    }
-    assert!(
-        !a.driving_by_active_inference(),
-        "0.6 does not win back the trust"
-    );
-    model.health.probe = Some(0.9);
-    // One model step arms the takeover (its first plan), the next drives by it.
-    for _ in 0..2 {
         a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
             .unwrap();
     }
@@ -154,7 +133,7 @@ fn distrust_needs_a_sustained_bad_model_and_probe_gates_trust() {
         !a.driving_by_active_inference(),
         "sustained: the rule drives again"
     );
-    assert_eq!(a.stats.switches_to_reactive, 2);
+    assert_eq!(a.stats.switches_to_reactive, 1);
 }
 
 /// Exploration is for learning a model; weights fit for control (a passing probe, e.g. from a
