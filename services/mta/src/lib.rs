@@ -3,5 +3,5 @@
 pub mod launch;
 pub mod notify;
 pub mod stack;
-pub mod summary;
+pub use mtanet_summaries::soak as summary;
 pub mod supervisor;

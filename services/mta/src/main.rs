@@ -1,16 +1,13 @@
 //! `mta`: the operator CLI.
 
-mod canvas;
 mod evaluate;
 mod figures;
 mod load;
 mod pauses;
 mod pingpong;
-mod plot;
 mod record;
 mod recording;
 mod replay;
-mod report;
 mod runcfg;
 mod soak;
 mod status;
@@ -21,6 +18,7 @@ mod train;
 mod up;
 
 use clap::{Parser, Subcommand};
+use mtanet_report::{plot, report};
 
 #[derive(Parser)]
 #[command(
@@ -84,7 +82,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Up(a) => up::run(a),
         Cmd::Record(a) => record::run(a),
         Cmd::Replay(a) => replay::run(a),
-        Cmd::Report(a) => report::run(a),
+        Cmd::Report(a) => report::run(a, &mtanet_eval::figure::strip_on_track),
         Cmd::Plot(a) => plot::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),

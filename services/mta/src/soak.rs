@@ -27,8 +27,7 @@ use crate::pauses::{self, PauseWatch};
 use crate::runcfg;
 use mtanet_ipc::incident::{Incident, IncidentKind};
 
-mod table;
-use table::print_table;
+use mtanet_report::print_table;
 
 #[derive(Debug, clap::Args)]
 pub struct SoakArgs {
@@ -369,7 +368,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             && leftovers.1.is_empty(),
     };
     mtanet_files::write_json(&out.join("soak.json"), &soak)?;
-    crate::report::latency_picture(
+    mtanet_report::latency_picture(
         &out.join("soak.png"),
         &[
             (

@@ -16,10 +16,10 @@ use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{Command, CommandSource, Observation, names};
 
-use crate::report::{self, RunInfo};
 use crate::runcfg;
 use mtanet_ipc::stack::StackConfig;
 use mtanet_mta::supervisor::{Event, Supervisor};
+use mtanet_report::RunInfo;
 
 #[derive(Debug, clap::Args)]
 pub struct UpArgs {
@@ -203,7 +203,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     } else if let Some(ck) = &args.checkpoint {
         std::fs::copy(ck, out.join("model.safetensors"))?;
     }
-    let r = report::write(&out)?;
+    let r = mtanet_report::write(&out, &mtanet_eval::figure::strip_on_track)?;
     eprintln!(
         "[up] {} steps ({:.0} s simulated) in {:.0} s; laps {} (active inference {}); control {}; report {}",
         r.steps,

@@ -1,9 +1,10 @@
 //! The soak's console table: latency percentiles against the targets, control and planning.
 
-use mtanet_ipc::latency::LatencySummary;
-use mtanet_mta::summary::{LEGS, SoakReport};
+use mtanet_summaries::LatencySummary;
+use mtanet_summaries::soak::{LEGS, SoakReport};
 
-pub(super) fn print_table(soak: &SoakReport) {
+/// Prints `soak`'s table to stdout (what `mta soak` ends with).
+pub fn print_table(soak: &SoakReport) {
     println!(
         "soak: {} {} steps ({} min) on {}",
         soak.mode, soak.steps, soak.minutes, soak.machine.cpu_model

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::canvas::{BLACK, Canvas, GREY, Rgb};
+use mtanet_canvas::{BLACK, Canvas, GREY, Rgb};
 
 #[derive(Debug, clap::Args)]
 pub struct PlotArgs {
@@ -144,14 +144,14 @@ pub fn learning(dir: &Path) -> anyhow::Result<bool> {
     if !log.exists() {
         return Ok(false);
     }
-    let (pts, bad) = mtanet_trainer::curve::read(&log)?;
+    let (pts, bad) = mtanet_summaries::curve::read(&log)?;
     if bad > 0 {
         tracing::warn!(lines = bad, path = %log.display(), "unreadable lines skipped");
     }
     if pts.is_empty() {
         return Ok(false);
     }
-    let xy = |f: &dyn Fn(&mtanet_trainer::curve::CurvePoint) -> Option<f64>| {
+    let xy = |f: &dyn Fn(&mtanet_summaries::curve::CurvePoint) -> Option<f64>| {
         pts.iter()
             .filter_map(|p| f(p).map(|y| (p.step as f64, y)))
             .collect::<Vec<_>>()
@@ -272,7 +272,7 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
     if model_error(dir).context("drawing model_error.png")? {
         wrote.push("model_error.png");
     }
-    if crate::report::latency_from_summaries(dir).context("drawing latency.png")? {
+    if crate::pictures::latency_from_summaries(dir).context("drawing latency.png")? {
         wrote.push("latency.png");
     }
     anyhow::ensure!(

@@ -1,5 +1,6 @@
-//! A small RGB raster for the run's pictures (lap trace, latency histogram): points, lines,
-//! boxes and font8x8 labels, written as PNG. No system fonts, no plotting dependency.
+//! A small RGB raster for the run's pictures (lap trace, latency histogram, curves): points,
+//! lines, boxes and font8x8 labels, written as PNG. No system fonts, no plotting dependency;
+//! the model's figure strip draws its labels with the same glyphs ([`glyph_pixels`]).
 
 use std::path::Path;
 
@@ -60,7 +61,7 @@ impl Canvas {
 
     /// ASCII text, 8 px glyphs scaled by `scale`, top-left at (x, y).
     pub fn text(&mut self, x: i64, y: i64, text: &str, scale: i64, c: Rgb) {
-        for (dx, dy) in mtanet_models::figure::glyph_pixels(text, scale.max(1) as usize) {
+        for (dx, dy) in glyph_pixels(text, scale.max(1) as usize) {
             self.set(x + dx as i64, y + dy as i64, c);
         }
     }
@@ -80,6 +81,25 @@ impl Canvas {
         w.finish()?;
         Ok(())
     }
+}
+
+/// The pixels `(x, y)` of ASCII `text` in font8x8 glyphs scaled by `scale`, from the text's
+/// top-left corner; other characters draw as blanks.
+pub fn glyph_pixels(text: &str, scale: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+    text.chars().enumerate().flat_map(move |(i, ch)| {
+        let glyph = font8x8::legacy::BASIC_LEGACY
+            .get(ch as usize)
+            .copied()
+            .unwrap_or_default();
+        (0..8usize).flat_map(move |gy| {
+            (0..8usize)
+                .filter(move |gx| glyph[gy] & (1 << gx) != 0)
+                .flat_map(move |gx| {
+                    (0..scale * scale)
+                        .map(move |k| ((i * 8 + gx) * scale + k % scale, gy * scale + k / scale))
+                })
+        })
+    })
 }
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! Tracks are data: a closed polyline of waypoints in a CSV file (see `parse.rs` for the format).
+//! The line tracer's tracks, as data with no physics behind them: a closed polyline of
+//! waypoints in a CSV file (see `parse.rs` for the format).
 //!
 //! A [`Track`] is validated once when it is built (`check.rs`), so everything downstream (MJCF
 //! generation, ground truth, the teacher) can assume a simple, closed, drivable line.
@@ -254,12 +255,13 @@ impl Track {
     }
 }
 
-pub(crate) fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+/// Euclidean distance between two points.
+pub fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
 /// Parameter `t` in [0,1] and the point of segment `a`-`b` closest to `q`.
-pub(crate) fn closest_on_segment(a: [f64; 2], b: [f64; 2], q: [f64; 2]) -> (f64, [f64; 2]) {
+fn closest_on_segment(a: [f64; 2], b: [f64; 2], q: [f64; 2]) -> (f64, [f64; 2]) {
     let d = [b[0] - a[0], b[1] - a[1]];
     let len2 = d[0] * d[0] + d[1] * d[1];
     let t = if len2 > 0.0 {

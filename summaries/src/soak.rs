@@ -4,10 +4,10 @@
 
 use std::collections::BTreeMap;
 
-use mtanet_control::{AgentStats, PlanningSummary};
-use mtanet_ipc::latency::LatencySummary;
-use mtanet_simulator::control_stats::ControlSummary;
 use serde::{Deserialize, Serialize};
+
+use crate::simulator::ControlSummary;
+use crate::{AgentStats, LatencySummary, PlanningSummary};
 
 /// `soak.json`.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -85,7 +85,7 @@ impl Control {
             late_plans: predictor.map_or(0, |p| p.late_plans),
             first_takeover_s: predictor
                 .and_then(|p| p.first_takeover_step)
-                .map(|s| s as f64 * mtanet_ipc::CONTROL_PERIOD_S),
+                .map(|s| s as f64 * crate::CONTROL_PERIOD_S),
         }
     }
 }
