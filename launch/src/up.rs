@@ -14,12 +14,12 @@ use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::stack::StackConfig;
 use mtanet_ipc::{Command, CommandSource, Observation, names};
+use mtanet_report::RunInfo;
 
 use crate::runcfg;
-use mtanet_ipc::stack::StackConfig;
-use mtanet_mta::supervisor::{Event, Supervisor};
-use mtanet_report::RunInfo;
+use crate::supervisor::{Event, Supervisor};
 
 #[derive(Debug, clap::Args)]
 pub struct UpArgs {
@@ -154,7 +154,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         sup.add(&spec, a)?;
         order.push(spec.name.clone());
     }
-    let run = mtanet_mta::launch::Run {
+    let run = crate::plan::Run {
         config: Some(config.clone()),
         namespace: Some(ipc.namespace.clone()),
         summaries: Some(out.clone()),
@@ -165,7 +165,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
         no_trainer: args.no_learning,
     };
-    for launch in mtanet_mta::launch::plan(&stack, &run) {
+    for launch in crate::plan::plan(&stack, &run) {
         sup.add(&launch.spec, launch.args)?;
         order.push(launch.spec.name);
     }

@@ -5,10 +5,10 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+use crate::plan::{Launch, Run, plan};
 use anyhow::Context;
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::stack::{ProcessSpec, StackConfig};
-use mtanet_mta::launch::{Launch, Run, plan};
 
 #[derive(Debug, clap::Args)]
 pub struct SystemdArgs {
@@ -123,7 +123,7 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
     let stack: StackConfig = file.section("stack")?;
     stack.validate().map_err(|e| file.invalid("[stack]", e))?;
     let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
-    let bin = args.bin.unwrap_or_else(mtanet_mta::stack::bin_dir);
+    let bin = args.bin.unwrap_or_else(crate::stack::bin_dir);
     let bin = std::path::absolute(&bin)?;
     std::fs::create_dir_all(&args.dest)
         .with_context(|| format!("creating {}", args.dest.display()))?;

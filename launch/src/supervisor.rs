@@ -139,8 +139,7 @@ impl Supervisor {
         let combined = Arc::clone(&self.combined);
         let c = &mut self.children[i];
         let notify = NotifySocket::bind(&c.spec.name)?;
-        let mut cmd =
-            crate::launch::command(&c.spec.binary, &c.args, c.spec.realtime_priority, true);
+        let mut cmd = crate::plan::command(&c.spec.binary, &c.args, c.spec.realtime_priority, true);
         // The process reports it on the stats topic (`mta status`).
         cmd.env(mtanet_ipc::stats::RESTARTS_ENV, c.restarts.to_string())
             // Its READY=1 (see `await_ready`); the units get the same from systemd.
@@ -148,7 +147,7 @@ impl Supervisor {
             .stderr(Stdio::piped());
         let mut child = cmd
             .spawn()
-            .with_context(|| crate::launch::missing_hint(&c.spec.binary))?;
+            .with_context(|| crate::plan::missing_hint(&c.spec.binary))?;
         let pid = child.id();
         if let Some(prio) = c.spec.realtime_priority {
             // SAFETY: reads the policy of our own child.

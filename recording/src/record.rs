@@ -1,5 +1,5 @@
 //! `mta record --out FILE.mcap`: the live topics of a stack into an MCAP file (see
-//! [`crate::recording`] for the format), until Ctrl-C / SIGTERM or `--seconds`. Observations and
+//! [`crate::format`] for the format), until Ctrl-C / SIGTERM or `--seconds`. Observations and
 //! commands are read through deep queues (64 samples) and counted by step, so a step the
 //! recorder missed is reported, never silently absent. `./ops/run_local.sh --record` runs it
 //! beside the stack into the run folder.
@@ -16,7 +16,7 @@ use mtanet_ipc::weights_topic::WeightsReceiver;
 use mtanet_ipc::{Command, Observation, ReplayChunk, TrainerStatus, names, systemd};
 use serde::Serialize;
 
-use crate::recording::{RecordingWriter, TOPICS};
+use crate::format::{RecordingWriter, TOPICS};
 
 #[derive(Debug, clap::Args)]
 pub struct RecordArgs {

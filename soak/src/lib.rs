@@ -5,6 +5,11 @@
 //! all through (the floor under the same load, which the target compares with). Writes `soak.json`
 //! ([`SoakReport`]) and `soak.png`, and prints a table with the targets.
 
+pub mod load;
+pub mod pauses;
+pub mod pingpong;
+mod process;
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -13,21 +18,23 @@ use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::stack::StackConfig;
-use mtanet_mta::stack::{bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace};
-use mtanet_mta::summary::{
+use mtanet_launch::runcfg;
+use mtanet_launch::stack::{
+    bin_dir, leftover_shm, nodes, remove_namespace_files, unique_namespace,
+};
+use mtanet_launch::supervisor::{Event, Supervisor};
+use mtanet_report::print_table;
+use mtanet_summaries::incident::{Incident, IncidentKind};
+use mtanet_summaries::predictor::Summary as PredictorSummary;
+use mtanet_summaries::simulator::Summary as SimulatorSummary;
+use mtanet_summaries::soak::{
     Control, IncidentCounts, ProcessUse, ReplayCounts, SoakReport, StartEnd,
 };
-use mtanet_mta::supervisor::{Event, Supervisor};
-use mtanet_predictor::service::Summary as PredictorSummary;
-use mtanet_simulator::summary::Summary as SimulatorSummary;
-use mtanet_trainer::service::Summary as TrainerSummary;
+use mtanet_summaries::trainer::Summary as TrainerSummary;
 
-use crate::load::{self, CpuHog};
-use crate::pauses::{self, PauseWatch};
-use crate::runcfg;
-use mtanet_ipc::incident::{Incident, IncidentKind};
-
-use mtanet_report::print_table;
+use crate::load::CpuHog;
+use crate::pauses::PauseWatch;
+use crate::process::{rss_and_fds, scheduling};
 
 #[derive(Debug, clap::Args)]
 pub struct SoakArgs {
@@ -62,43 +69,6 @@ pub struct SoakArgs {
     /// Confine the whole run (stack and ping-pong) to these CPUs, e.g. `0` or `0-1`.
     #[arg(long)]
     cpus: Option<String>,
-}
-
-/// A process's scheduling class as `ps` shows it: "FIFO 20", or "OTHER nice 10".
-fn scheduling(pid: u32) -> String {
-    let pid = pid as libc::pid_t;
-    let mut param = libc::sched_param { sched_priority: 0 };
-    // SAFETY: reads the policy and priority of another process (its main thread).
-    let (policy, ok) = unsafe {
-        (
-            libc::sched_getscheduler(pid),
-            libc::sched_getparam(pid, &mut param) == 0,
-        )
-    };
-    // SAFETY: getpriority(2) on a process id.
-    let nice = unsafe { libc::getpriority(libc::PRIO_PROCESS, pid as libc::id_t) };
-    match policy {
-        libc::SCHED_FIFO if ok => format!("FIFO {}", param.sched_priority),
-        libc::SCHED_OTHER => format!("OTHER nice {nice}"),
-        libc::SCHED_IDLE => "IDLE".into(),
-        p => format!("policy {p}"),
-    }
-}
-
-/// VmRSS (kB) and open file descriptors of a process.
-fn rss_and_fds(pid: u32) -> (u64, u64) {
-    let rss = std::fs::read_to_string(format!("/proc/{pid}/status"))
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmRSS:"))
-                .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse().ok()))
-        })
-        .unwrap_or(0);
-    let fds = std::fs::read_dir(format!("/proc/{pid}/fd"))
-        .map(|d| d.count() as u64)
-        .unwrap_or(0);
-    (rss, fds)
 }
 
 pub fn run(args: SoakArgs) -> anyhow::Result<()> {
@@ -190,7 +160,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     // 2. The stack.
     let steps = (args.minutes * 60.0 / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
     let mut sup = Supervisor::new(&out)?;
-    let run = mtanet_mta::launch::Run {
+    let run = mtanet_launch::Run {
         config: Some(config.clone()),
         namespace: Some(ns.clone()),
         summaries: Some(out.clone()),
@@ -199,7 +169,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         max_steps: Some(steps),
         ..Default::default()
     };
-    for launch in mtanet_mta::launch::plan(&stack, &run) {
+    for launch in mtanet_launch::plan(&stack, &run) {
         sup.add(&launch.spec, launch.args)?;
     }
     // Each one ready (READY=1) before the next, as `mta up` starts them.

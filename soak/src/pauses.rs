@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use mtanet_ipc::stamp;
-use mtanet_mta::summary::PauseSummary;
+use mtanet_summaries::soak::PauseSummary;
 use serde::Serialize;
 
 /// Lateness from which a wake-up counts as a pause of the CPU.

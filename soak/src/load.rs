@@ -5,7 +5,7 @@
 use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, bail};
-use mtanet_mta::summary::Machine;
+use mtanet_summaries::soak::Machine;
 
 /// One busy process per core at normal priority (`yes > /dev/null`), until dropped.
 pub struct CpuHog(Vec<Child>);

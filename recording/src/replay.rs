@@ -19,7 +19,7 @@ use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, names, stamp};
 use serde::Serialize;
 
-use crate::recording::{self, Recorded};
+use crate::format::{self, Recorded};
 
 #[derive(Debug, clap::Args)]
 pub struct ReplayArgs {
@@ -114,7 +114,7 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<()> {
     let (_, ipc) = args.common.load()?;
     anyhow::ensure!(args.speed > 0.0, "--speed must be > 0, not {}", args.speed);
     let shutdown = Shutdown::install()?;
-    let reading = recording::read(&args.file)?;
+    let reading = format::read(&args.file)?;
     if let Some(why) = &reading.damaged {
         tracing::warn!("{why}");
     }
