@@ -2,27 +2,7 @@
 //! so that a soak can set them beside the machine's own pauses: a miss while the machine ran
 //! nothing is the machine's, the rest are the stack's.
 
-use serde::{Deserialize, Serialize};
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum IncidentKind {
-    /// The simulator had no command within its wait (half a period).
-    MissedCommand,
-    /// A simulator step's work took longer than a period.
-    Overrun,
-    /// The predictor's plan for a segment was not there when the segment began.
-    LatePlan,
-}
-
-/// One miss, from the start of the work that missed to when the miss was known.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Incident {
-    pub step: u64,
-    pub kind: IncidentKind,
-    pub start_ns: u64,
-    pub end_ns: u64,
-}
+pub use mtanet_summaries::incident::{Incident, IncidentKind};
 
 /// Incidents kept per run: enough for any run worth reading, bounded for one that goes wrong.
 pub const MAX_INCIDENTS: usize = 10_000;

@@ -2,22 +2,10 @@
 //! loop feels.
 
 use hdrhistogram::Histogram;
-use serde::Serialize;
+pub use mtanet_summaries::latency::LatencySummary;
 
 /// Records durations in nanoseconds, 1 us .. 60 s, 3 significant digits.
 pub struct LatencyStats(Histogram<u64>);
-
-/// What a report shows of one [`LatencyStats`], in microseconds.
-#[derive(Debug, Clone, Copy, Default, Serialize, serde::Deserialize, PartialEq)]
-pub struct LatencySummary {
-    pub count: u64,
-    pub p50_us: f64,
-    #[serde(default)]
-    pub p90_us: f64,
-    pub p99_us: f64,
-    pub p999_us: f64,
-    pub max_us: f64,
-}
 
 impl Default for LatencyStats {
     fn default() -> Self {
@@ -66,16 +54,6 @@ impl LatencyStats {
             p999_us: us(h.value_at_quantile(0.999)),
             max_us: us(h.max()),
         }
-    }
-}
-
-impl std::fmt::Display for LatencySummary {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "n={} p50={:.1}us p99={:.1}us p99.9={:.1}us max={:.1}us",
-            self.count, self.p50_us, self.p99_us, self.p999_us, self.max_us
-        )
     }
 }
 

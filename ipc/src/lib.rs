@@ -32,5 +32,6 @@ pub const IMAGE_PIXELS: usize = IMAGE_HEIGHT * IMAGE_WIDTH;
 pub const ACTION_DIM: usize = 2;
 /// Simulated seconds between two observations (the paper's 0.02 s).
 pub const CONTROL_PERIOD_S: f64 = 0.02;
+const _: () = assert!(CONTROL_PERIOD_S == mtanet_summaries::CONTROL_PERIOD_S);
 /// Steps in one replay chunk (one training sequence, the paper's T = 20).
 pub const REPLAY_STEPS: usize = 20;

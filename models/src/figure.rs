@@ -3,6 +3,7 @@
 //! and frame labels.
 
 use crate::model::{ModelError, MtaPredNet};
+use mtanet_canvas::glyph_pixels;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tch::{Kind, Tensor};
@@ -190,25 +191,6 @@ impl Strip<'_> {
             .map_err(|e| write_err(path, e))?;
         writer.finish().map_err(|e| write_err(path, e))
     }
-}
-
-/// The pixels `(x, y)` of ASCII `text` in font8x8 glyphs scaled by `scale`, from the text's
-/// top-left corner; other characters draw as blanks. Shared with the run pictures of `mta`.
-pub fn glyph_pixels(text: &str, scale: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
-    text.chars().enumerate().flat_map(move |(i, ch)| {
-        let glyph = font8x8::legacy::BASIC_LEGACY
-            .get(ch as usize)
-            .copied()
-            .unwrap_or_default();
-        (0..8usize).flat_map(move |gy| {
-            (0..8usize)
-                .filter(move |gx| glyph[gy] & (1 << gx) != 0)
-                .flat_map(move |gx| {
-                    (0..scale * scale)
-                        .map(move |k| ((i * 8 + gx) * scale + k % scale, gy * scale + k / scale))
-                })
-        })
-    })
 }
 
 /// Black ASCII text with its top-left corner at `(y, x)`.

@@ -17,7 +17,8 @@ pub mod drive;
 pub mod mjcf;
 mod referee;
 mod teacher;
-pub mod track;
+/// The tracks (`mtanet-track`), here under their old path.
+pub use mtanet_track as track;
 mod truth;
 mod world;
 

@@ -7,10 +7,10 @@ use std::process::Command;
 mod proc;
 mod stats_watch;
 
-use mtanet_mta::summary::SoakReport;
+use mtanet_summaries::soak::SoakReport;
 
-pub use mtanet_mta::launch::{Run, plan};
-pub use mtanet_mta::stack::*;
+pub use mtanet_launch::stack::*;
+pub use mtanet_launch::{Run, plan};
 pub use proc::*;
 pub use stats_watch::StatsWatch;
 
@@ -30,7 +30,7 @@ pub fn run_in(ns: &str, dir: &Path) -> Run {
 
 /// Starts `binary` with the launch plan's arguments for `run`, then `extra`; its log in `log_dir`.
 pub fn start(binary: &str, run: &Run, extra: &[&str], log_dir: &Path) -> Proc {
-    let mut args = mtanet_mta::launch::args_of(binary, run);
+    let mut args = mtanet_launch::args_of(binary, run);
     args.extend(extra.iter().map(|a| a.to_string()));
     Proc::spawn(binary, &args, log_dir)
 }

@@ -7,7 +7,7 @@ use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
 
 use mtanet_ipc::node::NodeCensus;
-use mtanet_mta::stack::{bin_dir, nodes};
+use mtanet_launch::stack::{bin_dir, nodes};
 
 /// A path as a command-line argument (the tests' temporary paths are UTF-8).
 pub fn arg(p: &Path) -> &str {
@@ -57,11 +57,11 @@ impl Proc {
         own_group: bool,
     ) -> std::io::Result<Proc> {
         let log = log_dir.join(format!("{name}.log"));
-        let child = mtanet_mta::launch::command(name, args, None, own_group)
+        let child = mtanet_launch::command(name, args, None, own_group)
             .stderr(std::fs::File::create(&log)?)
             .spawn()
             .map_err(|e| {
-                let hint = mtanet_mta::launch::missing_hint(name);
+                let hint = mtanet_launch::missing_hint(name);
                 std::io::Error::new(e.kind(), format!("{hint}: {e}"))
             })?;
         Ok(Proc {

@@ -1,4 +1,4 @@
-//! Faults with the real processes under the real supervisor (`mtanet_mta::supervisor`, what
+//! Faults with the real processes under the real supervisor (`mtanet_launch::supervisor`, what
 //! `mta up` runs), in real time: each process killed with SIGKILL in turn is restarted and the
 //! stack steps again within 2 s with nothing stale left; a predictor frozen for 1 s (SIGSTOP)
 //! costs missed deadlines, the simulator's fallback keeps the car going, and the loop recovers.
@@ -10,8 +10,8 @@ use mtanet_ipc::node::{IpcConfig, create_node};
 use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::stack::StackConfig;
 use mtanet_ipc::{Command, names};
-use mtanet_mta::launch::{Run, plan};
-use mtanet_mta::supervisor::{Event, Supervisor};
+use mtanet_launch::supervisor::{Event, Supervisor};
+use mtanet_launch::{Run, plan};
 use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::*;
 use mtanet_trainer::service::Summary as TrainerSummary;

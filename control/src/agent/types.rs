@@ -11,6 +11,9 @@ use crate::drive::Wheels;
 use crate::planner::{Outcome, PlannerConfig};
 use crate::worker::{PlanJob, PlanService};
 
+/// Counters for reports (a plain data type of `mtanet-summaries`).
+pub use mtanet_summaries::AgentStats;
+
 /// Who decided a command.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -188,24 +191,4 @@ pub struct Decision {
     pub driver: Driver,
     /// The plan taken up at this step, if any (with its compute time).
     pub plan: Option<(Outcome, Duration)>,
-}
-
-/// Counters for reports.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct AgentStats {
-    pub reactive_steps: u64,
-    pub exploration_steps: u64,
-    pub active_inference_steps: u64,
-    pub fallback_steps: u64,
-    /// Switches to active inference, and back to the reactive rule because trust was lost.
-    pub switches_to_active_inference: u64,
-    pub switches_to_reactive: u64,
-    /// Control steps decided before active inference first took the wheel.
-    pub first_takeover_step: Option<u64>,
-    /// Times the line was lost under active inference and the fallback took over.
-    pub fallbacks: u64,
-    pub plans: u64,
-    /// Segments whose plan was not ready in time (the previous plan's next segment drove).
-    pub late_plans: u64,
-    pub plan_errors: u64,
 }

@@ -1,26 +1,16 @@
-//! `mta`: the operator CLI.
-
-mod canvas;
-mod evaluate;
-mod figures;
-mod load;
-mod pauses;
-mod pingpong;
-mod plot;
-mod record;
-mod recording;
-mod replay;
-mod report;
-mod runcfg;
-mod soak;
-mod status;
-mod synth;
-mod systemd;
-mod top;
-mod train;
-mod up;
+//! `mta`: the operator CLI, a thin shell over the crates that do the work: `mtanet-launch`
+//! (up, systemd), `mtanet-soak`, `mtanet-observe` (status, top), `mtanet-recording` (record,
+//! replay), `mtanet-report` (report, plot) and `mtanet-offline` (train, figures, synth, probe,
+//! drive).
 
 use clap::{Parser, Subcommand};
+use mtanet_launch::{systemd, up};
+use mtanet_observe::{status, top};
+use mtanet_offline::{evaluate, figures, synth, train};
+use mtanet_recording::{record, replay};
+use mtanet_report::{plot, report};
+use mtanet_soak as soak;
+use mtanet_soak::pingpong;
 
 #[derive(Parser)]
 #[command(
@@ -84,7 +74,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Up(a) => up::run(a),
         Cmd::Record(a) => record::run(a),
         Cmd::Replay(a) => replay::run(a),
-        Cmd::Report(a) => report::run(a),
+        Cmd::Report(a) => report::run(a, &mtanet_eval::figure::strip_on_track),
         Cmd::Plot(a) => plot::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),

@@ -2,28 +2,8 @@
 //! active inference and the rest, fallbacks. From the simulator's view (it knows every step's
 //! source and the ground truth), for the run's report.
 
-use std::collections::BTreeMap;
-
 use mtanet_ipc::CommandSource;
-use serde::{Deserialize, Serialize};
-
-#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
-pub struct ControlSummary {
-    /// Steps driven by each source (`reactive`, `exploration`, `active_inference`, `fallback`,
-    /// `teacher`).
-    pub steps: BTreeMap<String, u64>,
-    /// Mean |lateral error| (m) over the steps of each source that drove.
-    pub lateral_mean_m: BTreeMap<String, f64>,
-    /// Changes from another source to active inference and back.
-    pub switches: u64,
-    /// Times the fallback took over (the line lost under active inference).
-    pub fallbacks: u64,
-    /// Share of the steps driven by exploration segments.
-    pub exploration_fraction: f64,
-    /// Laps completed while active inference drove every step since the lap before (or since
-    /// it took over).
-    pub laps_completed_under_active_inference: u32,
-}
+pub use mtanet_summaries::simulator::ControlSummary;
 
 #[derive(Debug, Default)]
 pub struct ControlStats {

@@ -2,7 +2,7 @@
 //! report and the service summary.
 
 use mtanet_scenes::GroundTruth;
-use serde::Serialize;
+pub use mtanet_summaries::simulator::LateralError;
 
 #[derive(Debug, Default, Clone)]
 pub struct DriveStats {
@@ -12,13 +12,6 @@ pub struct DriveStats {
     off_line_steps: u64,
     laps: u32,
     laps_before: u32,
-}
-
-/// Mean and max of |lateral error| in metres.
-#[derive(Debug, Clone, Copy, Default, Serialize, serde::Deserialize, PartialEq)]
-pub struct LateralError {
-    pub mean: f64,
-    pub max: f64,
 }
 
 impl DriveStats {

@@ -9,23 +9,10 @@ use mtanet_ipc::TrainerStatus;
 use mtanet_ipc::ports::Receiver;
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::systemd::Watchdog;
-use serde::{Deserialize, Serialize};
+pub use mtanet_summaries::simulator::PaceSummary;
 
 /// Steps the simulator may run ahead of the trainer, in updates.
 const SLACK_UPDATES: f64 = 1.0;
-
-#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
-pub struct PaceSummary {
-    /// The configured rate (0: not paced).
-    pub target_updates_per_1000_steps: f64,
-    /// Trainer updates per 1000 steps since pacing began (once the trainer trained).
-    pub updates_per_1000_steps: f64,
-    /// Steps since pacing began, and the trainer's updates in them.
-    pub paced_steps: u64,
-    pub trainer_updates: u64,
-    /// Wall time spent waiting for the trainer.
-    pub wait_seconds: f64,
-}
 
 pub struct Pace {
     rate: f64,

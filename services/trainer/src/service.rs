@@ -4,7 +4,7 @@
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use mtanet_ipc::latency::{LatencyStats, LatencySummary};
+use mtanet_ipc::latency::LatencyStats;
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
@@ -12,12 +12,14 @@ use mtanet_ipc::stats::StatsPublisher;
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ReplayChunk, TrainerStatus, names, stamp};
-use serde::{Deserialize, Serialize};
 
 use crate::config::TrainerConfig;
 use crate::curve::{Curve, CurvePoint};
 use crate::learner::{Learner, Publication, Update};
 use crate::replay::ReplayBuffer;
+
+/// What the trainer reports at exit (a plain data type of `mtanet-summaries`).
+pub use mtanet_summaries::trainer::Summary;
 
 pub struct Ports {
     pub replay: Receiver<ReplayChunk>,
@@ -35,32 +37,6 @@ impl Ports {
             stats: StatsPublisher::open(node, "trainer")?.into(),
         })
     }
-}
-
-/// What the trainer reports at exit.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Summary {
-    pub chunks_received: u64,
-    /// Chunks missing from the sequence numbers (overwritten before they were read).
-    pub chunks_lost: u64,
-    pub steps_received: u64,
-    /// Share of the steps received that exploration segments drove.
-    pub exploration_fraction: f64,
-    /// Chunks in the replay buffer at the end.
-    pub buffered_sequences: usize,
-    /// Updates made by this process (a resumed run's earlier ones not included).
-    pub session_updates: u64,
-    /// The latest counterfactual probe: training step and rank correlation.
-    pub probe_step: Option<u64>,
-    pub probe: Option<f64>,
-    /// Accepted training updates (including those of a resumed checkpoint).
-    pub updates: u64,
-    /// Updates refused by the non-finite guard.
-    pub updates_refused: u64,
-    pub last_loss: Option<f64>,
-    pub weights_published: u64,
-    /// Wall time of one training update.
-    pub update_time: LatencySummary,
 }
 
 /// Hands weights to the predictor.

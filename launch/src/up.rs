@@ -1,0 +1,401 @@
+//! `mta up`: the whole stack on this machine (what `./ops/run_local.sh` runs). Starts the
+//! trainer, the predictor and the simulator as separate processes on one stack config, shows
+//! one live progress line, stops them cleanly on Ctrl-C / SIGTERM or when the simulated time is
+//! up, and leaves in the run folder: each process's log and summary, the effective config
+//! (`stack.toml`), the car's trace, the learned checkpoint (`model.safetensors`) and the
+//! report (`report.json`, `lap_trace.png`, `latency.png`, `figure.png`; see `mta report`).
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use mtanet_ipc::config::ConfigFile;
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::ports::{Receiver, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::stack::StackConfig;
+use mtanet_ipc::{Command, CommandSource, Observation, names};
+use mtanet_report::RunInfo;
+
+use crate::runcfg;
+use crate::supervisor::{Event, Supervisor};
+
+#[derive(Debug, clap::Args)]
+pub struct UpArgs {
+    /// Stack config (TOML; default ops/mtanet.toml when it exists, else built-in defaults).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Track CSV (default: the shipped oval).
+    #[arg(long)]
+    track: Option<PathBuf>,
+    /// Stop after this much simulated time (0: until Ctrl-C).
+    #[arg(long, default_value_t = 0.0)]
+    sim_seconds: f64,
+    /// Lockstep: every step waits for its command (default: real time, 50 Hz).
+    #[arg(long)]
+    lockstep: bool,
+    /// Run folder (default runs/<timestamp>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Start from this learned checkpoint: the trainer resumes from it and the predictor gets it
+    /// at once (with --no-learning the predictor alone loads it).
+    #[arg(long)]
+    checkpoint: Option<PathBuf>,
+    /// No trainer: the predictor drives with --checkpoint as it is.
+    #[arg(long, requires = "checkpoint")]
+    no_learning: bool,
+    /// Record the run's topics into `recording.mcap` in the run folder (`mta record`; replay it
+    /// with `mta replay`).
+    #[arg(long)]
+    record: bool,
+    /// With --record: the weights' checkpoint bytes too (~1 MB each), so a replay can hand a
+    /// predictor the same weights at the same steps.
+    #[arg(long, requires = "record")]
+    record_weight_blobs: bool,
+    /// iceoryx2 namespace (default: the config's [ipc] namespace).
+    #[arg(long)]
+    namespace: Option<String>,
+}
+
+const RECORDER: &str = "recorder";
+
+fn default_out() -> PathBuf {
+    let now = std::process::Command::new("date")
+        .arg("+%Y%m%d-%H%M%S")
+        .output();
+    let stamp = now
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|| "run".into());
+    PathBuf::from("runs").join(stamp)
+}
+
+pub fn run(args: UpArgs) -> anyhow::Result<()> {
+    let shutdown = Shutdown::install().context("installing signal handlers")?;
+    let out = args.out.clone().unwrap_or_else(default_out);
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let mode = args.lockstep.then_some("lockstep");
+    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), mode, &out)?;
+    let file = ConfigFile::load(Some(&config))?;
+    let mut ipc: IpcConfig = file.section("ipc")?;
+    if let Some(ns) = &args.namespace {
+        ipc.namespace = ns.clone();
+    }
+    let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
+    let track = args.track.clone().unwrap_or(scene.track);
+    mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;
+    let start_ck = match &args.checkpoint {
+        Some(ck) => Some(runcfg::probed_copy(ck, &file, &track, &out)?),
+        None => None,
+    };
+    if let (Some(ck), false) = (&start_ck, args.no_learning) {
+        std::fs::create_dir_all(&ck_dir)?;
+        std::fs::copy(ck, ck_dir.join("latest.safetensors"))?;
+        let opt = mtanet_models::train::optimizer_path(args.checkpoint.as_ref().expect("given"));
+        if opt.exists() {
+            std::fs::copy(
+                &opt,
+                mtanet_models::train::optimizer_path(&ck_dir.join("latest.safetensors")),
+            )?;
+        }
+    }
+    let info = RunInfo {
+        track: track.clone(),
+        lockstep: args.lockstep,
+        learning: !args.no_learning,
+        checkpoint: args.checkpoint.clone(),
+        config: args.config.clone(),
+    };
+    mtanet_files::write_json(&out.join("run.json"), &info)?;
+    eprintln!(
+        "[up] run folder {}; config {}",
+        out.display(),
+        config.display()
+    );
+
+    let arg = |p: &Path| p.to_string_lossy().into_owned();
+    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
+    let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
+    let mut sup = Supervisor::new(&out)?;
+    let mut order = Vec::new();
+    if args.record {
+        // First, so it hears the first observation, and stopped last, so it hears the last.
+        let spec = mtanet_ipc::stack::ProcessSpec {
+            name: RECORDER.into(),
+            binary: "mta".into(),
+            description: "mtanet recorder".into(),
+            args: vec![],
+            restart: mtanet_ipc::stack::RestartPolicy {
+                on_failure: false,
+                ..Default::default()
+            },
+            watchdog_s: 10,
+            realtime_priority: None,
+        };
+        let mut a: Vec<String> = [
+            "record",
+            "--config",
+            &arg(&config),
+            "--namespace",
+            &ipc.namespace,
+            "--summary",
+            &arg(&out.join("recording.json")),
+            "--out",
+            &arg(&out.join("recording.mcap")),
+        ]
+        .map(String::from)
+        .into();
+        if args.record_weight_blobs {
+            a.push("--weight-blobs".into());
+        }
+        sup.add(&spec, a)?;
+        order.push(spec.name.clone());
+    }
+    let run = crate::plan::Run {
+        config: Some(config.clone()),
+        namespace: Some(ipc.namespace.clone()),
+        summaries: Some(out.clone()),
+        track: Some(track.clone()),
+        checkpoint: start_ck.clone(),
+        trace: Some(out.join("trace.csv")),
+        max_steps: (args.sim_seconds > 0.0)
+            .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
+        no_trainer: args.no_learning,
+    };
+    for launch in crate::plan::plan(&stack, &run) {
+        sup.add(&launch.spec, launch.args)?;
+        order.push(launch.spec.name);
+    }
+    // In order, each one ready (READY=1: ports open, loop running) before the next, as the
+    // Type=notify units do: the simulator comes last and its first step finds its peers answering.
+    for name in &order {
+        let pid = sup.start(name)?;
+        eprintln!("[up] started {name} (pid {pid})");
+        if let Err(e) = sup.await_ready(name, Duration::from_secs(60)) {
+            sup.stop_all(Duration::from_secs(20));
+            return Err(e);
+        }
+    }
+
+    let outcome = watch(&ipc, &mut sup, &shutdown, &out.join("progress.csv"));
+    if let Some(line) = &outcome.as_ref().err() {
+        eprintln!("\n[up] {line:#}");
+    }
+    eprintln!("\n[up] stopping");
+    let mut failed = Vec::new();
+    for (name, how) in sup.stop_all(Duration::from_secs(60)) {
+        match how.as_deref() {
+            Some("exit code 0") => {}
+            Some(other) => failed.push(format!("{name} ended with {other}")),
+            None => failed.push(format!("{name} did not stop within 60 s")),
+        }
+    }
+    mtanet_files::write_json(
+        &out.join("supervisor.json"),
+        &serde_json::json!({ "restarts": sup.restarts() }),
+    )?;
+    let latest = ck_dir.join("latest.safetensors");
+    if latest.exists() {
+        std::fs::copy(&latest, out.join("model.safetensors"))?;
+    } else if let Some(ck) = &args.checkpoint {
+        std::fs::copy(ck, out.join("model.safetensors"))?;
+    }
+    let r = mtanet_report::write(&out, &mtanet_eval::figure::strip_on_track)?;
+    eprintln!(
+        "[up] {} steps ({:.0} s simulated) in {:.0} s; laps {} (active inference {}); control {}; report {}",
+        r.steps,
+        r.sim_seconds,
+        r.wall_seconds,
+        r.laps["completed"],
+        r.laps["completed_under_active_inference"],
+        r.control,
+        out.join("report.json").display()
+    );
+    outcome?;
+    if !failed.is_empty() {
+        bail!("{}", failed.join("; "));
+    }
+    Ok(())
+}
+
+/// The live progress line, restarting failed processes, until a signal, the simulator's end,
+/// or a process that failed more often than its restart policy allows.
+/// Every second a line also goes to `progress_csv` (the live model-vs-copy-last curve that
+/// `mta plot` draws).
+fn watch(
+    ipc: &IpcConfig,
+    sup: &mut Supervisor,
+    shutdown: &Shutdown,
+    progress_csv: &Path,
+) -> anyhow::Result<()> {
+    let mut csv = ProgressCsv::create(progress_csv)?;
+    let mut last_row = Instant::now();
+    let node = create_node(ipc, "mta-up")?;
+    let obs = Receiver::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP)?;
+    let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP)?;
+    let tty = std::io::stderr().is_terminal();
+    let start = Instant::now();
+    let mut last_print = Instant::now();
+    let (mut last_obs, mut last_cmd) = (None::<Observation>, None::<Command>);
+    let mut episodes_laps = (0u8, 0u32, 0u32); // episode, laps before it, laps in it
+    loop {
+        if shutdown.requested() {
+            return Ok(());
+        }
+        for e in sup.poll()? {
+            match e {
+                Event::Done { name } if name == "simulator" => return Ok(()),
+                // A recorder that failed costs the recording, not the run.
+                Event::Done { name } | Event::GaveUp { name, .. } if name == RECORDER => {
+                    eprintln!("\n[up] the recorder stopped; see mta.log (the run goes on)");
+                }
+                Event::Done { name } => bail!("{name} exited on its own"),
+                Event::GaveUp { name, status } => {
+                    bail!("{name} failed ({status}) more often than its restart policy allows")
+                }
+                Event::Failed {
+                    name,
+                    status,
+                    restart_in,
+                } => {
+                    eprintln!(
+                        "\n[up] {name} failed ({status}): restarting in {:.1} s",
+                        restart_in.as_secs_f64()
+                    )
+                }
+                Event::Restarted {
+                    name,
+                    pid,
+                    restarts,
+                } => {
+                    eprintln!("[up] restarted {name} (pid {pid}, restart {restarts})")
+                }
+            }
+        }
+        obs.wait(Duration::from_millis(100))?;
+        if let Some(o) = obs.latest()? {
+            if o.episode != episodes_laps.0 {
+                episodes_laps = (o.episode, episodes_laps.1 + episodes_laps.2, 0);
+            }
+            episodes_laps.2 = o.truth.laps;
+            last_obs = Some(o);
+        }
+        if let Some(c) = cmds.latest()? {
+            last_cmd = Some(c);
+        }
+        if last_row.elapsed() >= Duration::from_secs(1) {
+            last_row = Instant::now();
+            let laps = episodes_laps.1 + episodes_laps.2;
+            csv.row(last_obs.as_ref(), last_cmd.as_ref(), laps, start.elapsed());
+        }
+        if last_print.elapsed() >= Duration::from_secs(if tty { 1 } else { 10 }) {
+            last_print = Instant::now();
+            let restarts: u32 = sup.restarts().values().sum();
+            let mut line = progress(
+                last_obs.as_ref(),
+                last_cmd.as_ref(),
+                episodes_laps.1 + episodes_laps.2,
+                start.elapsed(),
+            );
+            if restarts > 0 {
+                line.push_str(&format!(" | restarts {restarts}"));
+            }
+            if tty {
+                eprint!("\r{line:<120}");
+                let _ = std::io::stderr().flush();
+            } else {
+                eprintln!("[up] {line}");
+            }
+        }
+    }
+}
+
+/// `progress.csv`: `wall_s,step,sim_s,laps,driver,model_over_copy_last,probe,predictor_ms`,
+/// one row a second (empty fields: not known yet). A failed write stops the file, not the run.
+struct ProgressCsv {
+    out: Option<std::io::BufWriter<std::fs::File>>,
+}
+
+impl ProgressCsv {
+    fn create(path: &Path) -> anyhow::Result<Self> {
+        let f =
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let mut out = std::io::BufWriter::new(f);
+        writeln!(
+            out,
+            "wall_s,step,sim_s,laps,driver,model_over_copy_last,probe,predictor_ms"
+        )?;
+        Ok(Self { out: Some(out) })
+    }
+
+    fn row(&mut self, o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) {
+        let (Some(out), Some(v)) = (self.out.as_mut(), Latest::of(o, c)) else {
+            return;
+        };
+        let f = |v: Option<f32>| v.map_or(String::new(), |v| format!("{v:.4}"));
+        let res = writeln!(
+            out,
+            "{:.1},{},{:.2},{laps},{},{},{},{}",
+            wall.as_secs_f64(),
+            v.step,
+            v.sim_s,
+            v.driver.unwrap_or(""),
+            f(v.ratio),
+            f(v.probe),
+            f(v.predictor_ms),
+        )
+        .and_then(|_| out.flush());
+        if let Err(e) = res {
+            tracing::error!("progress.csv stops here: {e}");
+            self.out = None;
+        }
+    }
+}
+
+/// What progress.csv and the progress line show of the newest observation and command.
+struct Latest {
+    step: u64,
+    sim_s: f64,
+    driver: Option<&'static str>,
+    /// Non-finite values (no model yet) are left out.
+    ratio: Option<f32>,
+    probe: Option<f32>,
+    predictor_ms: Option<f32>,
+}
+
+impl Latest {
+    fn of(o: Option<&Observation>, c: Option<&Command>) -> Option<Self> {
+        let o = o?;
+        let finite = |v: Option<f32>| v.filter(|v| v.is_finite());
+        Some(Self {
+            step: o.step,
+            sim_s: o.step as f64 * mtanet_ipc::CONTROL_PERIOD_S,
+            driver: c
+                .and_then(|c| CommandSource::from_u32(c.source))
+                .map(CommandSource::name),
+            ratio: finite(c.map(|c| c.model_error_ratio)),
+            probe: finite(c.map(|c| c.probe)),
+            predictor_ms: c.map(|c| (c.compute_ns as f64 / 1e6) as f32),
+        })
+    }
+}
+
+fn progress(o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) -> String {
+    let Some(v) = Latest::of(o, c) else {
+        return format!("{:.0} s: waiting for the simulator", wall.as_secs_f64());
+    };
+    let fmt = |v: Option<f32>| v.map_or("-".into(), |v| format!("{v:.2}"));
+    format!(
+        "step {} ({:.0} s sim, {:.0} s wall) | laps {laps} | driver {} | model/copy-last {} | probe {} | predictor {:.2} ms",
+        v.step,
+        v.sim_s,
+        wall.as_secs_f64(),
+        v.driver.unwrap_or("-"),
+        fmt(v.ratio),
+        fmt(v.probe),
+        v.predictor_ms.unwrap_or(0.0),
+    )
+}

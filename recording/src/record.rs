@@ -1,0 +1,195 @@
+//! `mta record --out FILE.mcap`: the live topics of a stack into an MCAP file (see
+//! [`crate::format`] for the format), until Ctrl-C / SIGTERM or `--seconds`. Observations and
+//! commands are read through deep queues (64 samples) and counted by step, so a step the
+//! recorder missed is reported, never silently absent. `./ops/run_local.sh --record` runs it
+//! beside the stack into the run folder.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use mtanet_ipc::cli::CommonArgs;
+use mtanet_ipc::node::{create_node, create_waitset};
+use mtanet_ipc::ports::{Receiver, TopicShape};
+use mtanet_ipc::shutdown::Shutdown;
+use mtanet_ipc::weights_topic::WeightsReceiver;
+use mtanet_ipc::{Command, Observation, ReplayChunk, TrainerStatus, names, systemd};
+use serde::Serialize;
+
+use crate::format::{RecordingWriter, TOPICS};
+
+#[derive(Debug, clap::Args)]
+pub struct RecordArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// The recording to write (MCAP).
+    #[arg(long)]
+    out: PathBuf,
+    /// Topics to record (default: all of them).
+    #[arg(long, value_delimiter = ',', value_parser = clap::builder::PossibleValuesParser::new(TOPICS))]
+    topics: Vec<String>,
+    /// Record the weights' checkpoint bytes too (~1 MB each), not only their headers; replay
+    /// can then hand the same weights to a predictor.
+    #[arg(long)]
+    weight_blobs: bool,
+    /// Stop after this many seconds (0: until Ctrl-C / SIGTERM).
+    #[arg(long, default_value_t = 0.0)]
+    seconds: f64,
+}
+
+/// What a recording run reports at its end (stderr, and `--summary`).
+#[derive(Debug, Default, Serialize)]
+pub struct RecordSummary {
+    pub messages: std::collections::BTreeMap<&'static str, u64>,
+    pub bytes: u64,
+    pub seconds: f64,
+    /// Steps missing between recorded observations (commands) of one simulator run.
+    pub missed_observations: u64,
+    pub missed_commands: u64,
+}
+
+/// Counts the steps a sequence of step numbers skipped (a restarted simulator starts again).
+#[derive(Default)]
+struct Gaps {
+    last: Option<u64>,
+    missed: u64,
+}
+
+impl Gaps {
+    fn see(&mut self, step: u64) {
+        if let Some(l) = self.last
+            && step > l
+        {
+            self.missed += step - l - 1;
+        }
+        self.last = Some(step);
+    }
+}
+
+/// Everything pending on a topic (copied out, so the samples go back to the publisher at once).
+fn drain<T: std::fmt::Debug + Copy + ZeroCopySend>(
+    r: &Option<Receiver<T>>,
+) -> anyhow::Result<Vec<T>> {
+    let mut batch = Vec::new();
+    if let Some(r) = r {
+        r.drain_events()?;
+        r.for_each(|m| batch.push(*m))?;
+    }
+    Ok(batch)
+}
+
+pub fn run(args: RecordArgs) -> anyhow::Result<()> {
+    let (_, ipc) = args.common.load()?;
+    let shutdown = Shutdown::install()?;
+    let want = |t: &str| args.topics.is_empty() || args.topics.iter().any(|x| x == t);
+    let node = create_node(&ipc, &format!("mta-record-{}", std::process::id()))?;
+    let obs = want("observation")
+        .then(|| Receiver::<Observation>::open_deep(&node, names::OBSERVATION, TopicShape::STEP))
+        .transpose()?;
+    let cmds = want("command")
+        .then(|| Receiver::<Command>::open_deep(&node, names::COMMAND, TopicShape::STEP))
+        .transpose()?;
+    let replay = want("replay")
+        .then(|| Receiver::<ReplayChunk>::open(&node, names::REPLAY, TopicShape::REPLAY))
+        .transpose()?;
+    let status = want("trainer_status")
+        .then(|| Receiver::<TrainerStatus>::open(&node, names::TRAINER_STATUS, TopicShape::STATUS))
+        .transpose()?;
+    let weights = want("weights")
+        .then(|| WeightsReceiver::open(&node))
+        .transpose()?;
+    let waitset = create_waitset()?;
+    let mut guards = Vec::new();
+    if let Some(r) = &obs {
+        guards.push(waitset.attach_notification(r.listener())?);
+    }
+    if let Some(r) = &cmds {
+        guards.push(waitset.attach_notification(r.listener())?);
+    }
+    if let Some(r) = &replay {
+        guards.push(waitset.attach_notification(r.listener())?);
+    }
+    if let Some(r) = &weights {
+        guards.push(waitset.attach_notification(r.listener())?);
+    }
+    let mut out = RecordingWriter::create(&args.out)?;
+    systemd::ready("recording");
+    tracing::info!(out = %args.out.display(), namespace = %ipc.namespace, "recording");
+    let start = Instant::now();
+    let mut last_flush = Instant::now();
+    let (mut obs_gaps, mut cmd_gaps) = (Gaps::default(), Gaps::default());
+    let mut failure = None;
+    while !shutdown.requested()
+        && (args.seconds <= 0.0 || start.elapsed().as_secs_f64() < args.seconds)
+    {
+        // Every wake-up drains every topic below, whichever woke it.
+        waitset.wait_and_process_once_with_timeout(
+            |_| CallbackProgression::Continue,
+            Duration::from_millis(100),
+        )?;
+        let mut step = || -> anyhow::Result<()> {
+            for o in drain(&obs)? {
+                obs_gaps.see(o.step);
+                out.observation(&o)?;
+            }
+            for c in drain(&cmds)? {
+                cmd_gaps.see(c.step);
+                out.command(&c)?;
+            }
+            for c in drain(&replay)? {
+                out.replay(&c)?;
+            }
+            if let Some(r) = &status
+                && let Some(s) = r.latest()?
+            {
+                out.trainer_status(&s)?;
+            }
+            if let Some(w) = &weights {
+                let blob = args.weight_blobs;
+                let got = w.latest(|h, bytes| (*h, blob.then(|| bytes.to_vec())))?;
+                if let Some((h, b)) = got {
+                    out.weights(&h, b.as_deref())?;
+                }
+            }
+            Ok(())
+        };
+        if let Err(e) = step() {
+            failure = Some(e);
+            break;
+        }
+        if last_flush.elapsed() >= Duration::from_secs(1) {
+            last_flush = Instant::now();
+            out.flush()?;
+        }
+    }
+    let counts = out.counts.clone();
+    out.finish()?;
+    let summary = RecordSummary {
+        messages: counts,
+        bytes: std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
+        seconds: start.elapsed().as_secs_f64(),
+        missed_observations: obs_gaps.missed,
+        missed_commands: cmd_gaps.missed,
+    };
+    systemd::stopping();
+    tracing::info!(summary = %serde_json::to_string(&summary)?, "recording closed");
+    args.common.write_summary(&summary)?;
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaps_count_skipped_steps_and_not_a_restart() {
+        let mut g = Gaps::default();
+        for s in [0, 1, 2, 5, 6, 0, 1, 3] {
+            g.see(s);
+        }
+        assert_eq!(g.missed, 2 + 1);
+    }
+}

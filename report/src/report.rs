@@ -1,0 +1,183 @@
+//! `mta report RUN_DIR`: the run's `report.json` and pictures, from what the services left in
+//! the run folder (their summaries, the simulator's trace, the trainer's checkpoint). `mta up`
+//! calls it at the end of every run.
+//!
+//! - `report.json`: who drove and how well, laps, prediction, probe, latencies, trainer, replay;
+//! - `lap_trace.png`: the car's path coloured by who drove, over the track;
+//! - `latency.png`: histograms of the simulator's step and the predictor's compute per step;
+//! - `figure.png`: the model's figure strip on a fresh drive of the run's track (drawn by the
+//!   [`FigureStrip`] the caller passes: the model is not this crate's);
+//! - `learning.png`, `model_error.png`: the learning curve and the live model's error (`mta plot`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use mtanet_summaries::predictor::Summary as PredictorSummary;
+use mtanet_summaries::simulator::Summary as SimulatorSummary;
+use mtanet_summaries::soak::Control;
+use mtanet_summaries::trainer::Summary as TrainerSummary;
+use mtanet_summaries::{LatencySummary, PlanningSummary};
+use serde::{Deserialize, Serialize};
+
+use crate::pictures;
+
+#[derive(Debug, clap::Args)]
+pub struct ReportArgs {
+    /// The run folder (`runs/<timestamp>/` of `./ops/run_local.sh`).
+    pub dir: PathBuf,
+}
+
+/// What `mta up` records about the run it started.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct RunInfo {
+    pub track: PathBuf,
+    pub lockstep: bool,
+    pub learning: bool,
+    pub checkpoint: Option<PathBuf>,
+    pub config: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Report {
+    pub steps: u64,
+    pub sim_seconds: f64,
+    pub wall_seconds: f64,
+    pub track: PathBuf,
+    pub lockstep: bool,
+    pub control: Control,
+    /// What the plans could afford in real time (iterations, candidates, the share cut by
+    /// their deadline, the cost reached); absent without a predictor.
+    pub planning: Option<PlanningSummary>,
+    pub laps: serde_json::Value,
+    pub lateral_error_m: serde_json::Value,
+    pub prediction: serde_json::Value,
+    pub probe: serde_json::Value,
+    pub latency: BTreeMap<String, LatencySummary>,
+    /// Steps whose command did not come within the simulator's wait (the fallback drove).
+    pub missed_commands: u64,
+    /// Steps whose work took longer than their 20 ms period.
+    pub overruns: u64,
+    pub trainer: serde_json::Value,
+    pub replay: serde_json::Value,
+    /// Restarts of each process by the supervisor (`mta up`).
+    pub restarts: serde_json::Value,
+}
+
+/// A summary, or `None` where the process wrote none.
+pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<Option<T>> {
+    match mtanet_files::read_json(path) {
+        Ok(v) => Ok(Some(v)),
+        Err(e) if e.is_not_found() => Ok(None),
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Draws the model's figure strip: the checkpoint `model` on a fresh drive of `track`, written to
+/// `out`. The model and the world live in heavier crates; the caller passes it in.
+pub type FigureStrip = dyn Fn(&Path, &Path, &Path) -> anyhow::Result<()>;
+
+/// `mta report`: writes the report and prints it.
+pub fn run(args: ReportArgs, figure: &FigureStrip) -> anyhow::Result<()> {
+    let report = write(&args.dir, figure)?;
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}
+
+/// Builds `report.json` and the pictures in `dir` (`figure.png` with `figure`); returns the
+/// report.
+pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
+    let info: RunInfo = read_json(&dir.join("run.json"))?.unwrap_or_default();
+    let sim: SimulatorSummary = read_json(&dir.join("mta-simulator.json"))?.with_context(|| {
+        format!(
+            "{} has no mta-simulator.json: the simulator did not finish",
+            dir.display()
+        )
+    })?;
+    let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
+    let tr: Option<TrainerSummary> = read_json(&dir.join("mta-trainer.json"))?;
+    let sup: Option<serde_json::Value> = read_json(&dir.join("supervisor.json"))?;
+    let c = &sim.control;
+    let lat = |k: &str| c.lateral_mean_m.get(k).copied();
+    let mut latency = BTreeMap::new();
+    latency.insert("step".into(), sim.step_time);
+    latency.insert("round_trip".into(), sim.round_trip);
+    if sim.tick_late.count > 0 {
+        latency.insert("tick_late".into(), sim.tick_late);
+    }
+    if let Some(p) = &pred {
+        latency.insert("predictor".into(), p.compute);
+        latency.insert("plan".into(), p.plan);
+    }
+    let report = Report {
+        steps: sim.steps,
+        sim_seconds: sim.sim_seconds,
+        wall_seconds: sim.wall_seconds,
+        track: info.track.clone(),
+        lockstep: info.lockstep,
+        control: Control::new(c, pred.as_ref().map(|p| &p.control)),
+        planning: pred.as_ref().map(|p| p.planning),
+        laps: serde_json::json!({
+            "completed": sim.laps,
+            "completed_under_active_inference": c.laps_completed_under_active_inference,
+            "lost_line_events": sim.resets - sim.wrong_way_resets,
+            "wrong_way_events": sim.wrong_way_resets,
+        }),
+        lateral_error_m: serde_json::json!({
+            // The reactive rule's own steps; its exploration segments and the fallback apart.
+            "reactive_mean": lat("reactive"),
+            "active_inference_mean": lat("active_inference"),
+            "exploration_mean": lat("exploration"),
+            "fallback_mean": lat("fallback"),
+            "all_mean": sim.lateral_error_m.mean,
+        }),
+        prediction: serde_json::json!({
+            "mse": pred.as_ref().and_then(|p| p.model_mse),
+            "copy_last_mse": pred.as_ref().and_then(|p| p.copy_last_mse),
+        }),
+        probe: serde_json::json!({
+            "rank_correlation": tr.as_ref().and_then(|t| t.probe).or(pred.as_ref().and_then(|p| p.probe)),
+            "step": tr.as_ref().and_then(|t| t.probe_step),
+        }),
+        latency,
+        missed_commands: sim.missed_commands,
+        overruns: sim.overruns,
+        trainer: serde_json::json!({
+            "updates": tr.as_ref().map(|t| t.updates),
+            "session_updates": tr.as_ref().map(|t| t.session_updates),
+            "updates_per_1000_steps": (sim.pace.paced_steps > 0).then_some(sim.pace.updates_per_1000_steps),
+            "pace_target": sim.pace.target_updates_per_1000_steps,
+            "update_time": tr.as_ref().map(|t| t.update_time),
+        }),
+        replay: serde_json::json!({
+            "chunks_sent": sim.replay_chunks_sent,
+            "chunks_received": tr.as_ref().map(|t| t.chunks_received),
+            "chunks_lost": tr.as_ref().map(|t| t.chunks_lost),
+            "exploration_fraction": tr.as_ref().map(|t| t.exploration_fraction),
+        }),
+        restarts: sup.map(|s| s["restarts"].clone()).unwrap_or_default(),
+    };
+    mtanet_files::write_json(&dir.join("report.json"), &report)?;
+    if let Err(e) = pictures::lap_trace(dir, &info.track) {
+        tracing::warn!("no lap trace picture: {e:#}");
+    }
+    pictures::latency_from(dir, &sim, pred.as_ref())?;
+    for (name, draw) in [
+        (
+            "learning.png",
+            crate::plot::learning as fn(&Path) -> anyhow::Result<bool>,
+        ),
+        ("model_error.png", crate::plot::model_error),
+    ] {
+        if let Err(e) = draw(dir) {
+            tracing::warn!("no {name}: {e:#}");
+        }
+    }
+    let model = dir.join("model.safetensors");
+    if model.exists()
+        && let Err(e) = figure(&model, &info.track, &dir.join("figure.png"))
+    {
+        tracing::warn!("no figure strip: {e:#}");
+    }
+    Ok(report)
+}

@@ -1,7 +1,0 @@
-//! Library side of the `mta` CLI: what its subcommands share with the system tests.
-
-pub mod launch;
-pub mod notify;
-pub mod stack;
-pub mod summary;
-pub mod supervisor;

@@ -1,0 +1,114 @@
+//! Load beside a run: a CPU hog on every core, or the run confined to some cores, so that a
+//! real-time figure measured on a fast machine also holds for a slower or busier one; and the
+//! CPU a figure was measured on.
+
+use std::process::{Child, Command, Stdio};
+
+use anyhow::{Context, bail};
+use mtanet_summaries::soak::Machine;
+
+/// One busy process per core at normal priority (`yes > /dev/null`), until dropped.
+pub struct CpuHog(Vec<Child>);
+
+impl CpuHog {
+    pub fn start(processes: usize) -> anyhow::Result<Self> {
+        let mut hog = Self(Vec::new());
+        for _ in 0..processes {
+            let child = Command::new("yes")
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .context("starting `yes` as a CPU hog")?;
+            hog.0.push(child);
+        }
+        Ok(hog)
+    }
+
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+}
+
+impl Drop for CpuHog {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Confines this process, and every process it starts from now on, to `cpus` ("0", "0-1",
+/// "0,2").
+pub fn confine(cpus: &str) -> anyhow::Result<()> {
+    // SAFETY: an all-zero cpu_set_t is the empty set.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    for part in cpus.split(',') {
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (a, b),
+            None => (part, part),
+        };
+        let parse = |v: &str| -> anyhow::Result<usize> {
+            v.trim()
+                .parse()
+                .with_context(|| format!("--cpus {cpus:?}: {v:?} is not a CPU number"))
+        };
+        let (a, b) = (parse(a)?, parse(b)?);
+        if a > b || b >= libc::CPU_SETSIZE as usize {
+            bail!("--cpus {cpus:?}: {part:?} is not a range of CPUs");
+        }
+        // SAFETY: b < CPU_SETSIZE, checked above.
+        (a..=b).for_each(|c| unsafe { libc::CPU_SET(c, &mut set) });
+    }
+    // SAFETY: sched_setaffinity(2) on this process with a set we own.
+    if unsafe { libc::sched_setaffinity(0, std::mem::size_of_val(&set), &set) } != 0 {
+        bail!(
+            "--cpus {cpus:?}: sched_setaffinity failed: {}",
+            std::io::Error::last_os_error()
+        );
+    }
+    Ok(())
+}
+
+/// The CPUs this process may run on (after [`confine`]).
+pub fn allowed_cpus() -> Vec<usize> {
+    // SAFETY: an all-zero cpu_set_t is the empty set; sched_getaffinity(2) fills it.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    if unsafe { libc::sched_getaffinity(0, std::mem::size_of_val(&set), &mut set) } != 0 {
+        return vec![0];
+    }
+    // SAFETY: CPU_ISSET reads the set within CPU_SETSIZE.
+    (0..libc::CPU_SETSIZE as usize)
+        .filter(|&c| unsafe { libc::CPU_ISSET(c, &set) })
+        .collect()
+}
+
+/// The CPU a figure was measured on, and what it ran beside.
+pub fn machine(cpu_hog_processes: usize) -> Machine {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let cpu_model = info
+        .lines()
+        .find_map(|l| l.strip_prefix("model name"))
+        .and_then(|l| l.split_once(':'))
+        .map_or_else(|| "unknown".into(), |(_, m)| m.trim().to_string());
+    Machine {
+        cpu_model,
+        avx512: info.split_whitespace().any(|w| w == "avx512f"),
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        cpu_hog_processes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_cpu_lists_are_refused_with_the_list_named() {
+        for bad in ["x", "1-0", "0-99999"] {
+            let e = confine(bad).unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
+        }
+        assert!(machine(0).cpus >= 1);
+    }
+}

@@ -1,0 +1,22 @@
+//! The figures the stack's processes and runs report, as plain serde types with no IPC, model or
+//! physics behind them: percentiles ([`LatencySummary`]), real-time incidents, each service's
+//! exit summary, the trainer's learning curve and the soak's report. The run report and its
+//! plots build on this crate alone; the services fill these types and re-export them.
+
+pub mod agent;
+pub mod curve;
+pub mod incident;
+pub mod latency;
+pub mod planning;
+pub mod predictor;
+pub mod simulator;
+pub mod soak;
+pub mod trainer;
+
+pub use agent::AgentStats;
+pub use latency::LatencySummary;
+pub use planning::PlanningSummary;
+
+/// Simulated seconds between two observations (the paper's 0.02 s): steps to seconds in
+/// reports. `mtanet_ipc::CONTROL_PERIOD_S` is checked equal to it at compile time.
+pub const CONTROL_PERIOD_S: f64 = 0.02;

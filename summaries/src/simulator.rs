@@ -1,0 +1,109 @@
+//! What the simulator reports at exit (`--summary FILE.json`) and the data it holds: who drove
+//! ([`ControlSummary`]), the lateral error, the lockstep pacing.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::incident::Incident;
+use crate::latency::LatencySummary;
+
+/// What the simulator reports at exit (`--summary FILE.json`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Summary {
+    pub steps: u64,
+    /// Steps driven by a command from the predictor for that very step.
+    pub commands_received: u64,
+    /// Steps where a predictor was connected but its command did not come within the wait
+    /// (`command_timeout_ms`, at most half a period in real time).
+    pub missed_commands: u64,
+    /// Commands that arrived for another step (late answers to earlier steps), dropped.
+    pub stale_commands: u64,
+    /// Waits for a command in which the simulator itself was frozen (the machine paused), and
+    /// the time given back to the predictor for it (`command_wait.rs`).
+    #[serde(default)]
+    pub frozen_command_waits: u64,
+    #[serde(default)]
+    pub frozen_wait_seconds: f64,
+    /// Non-finite commands rejected by the world.
+    pub rejected_commands: u64,
+    /// Steps driven by the teacher because no predictor was connected.
+    pub teacher_steps: u64,
+    pub replay_chunks_sent: u64,
+    /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
+    pub dead_nodes_cleaned: u64,
+    /// Times the car was lost (or drove the wrong way) and was put back at the start
+    /// (episodes - 1).
+    pub resets: u64,
+    /// Of those, the times it drove the wrong way round.
+    pub wrong_way_resets: u64,
+    /// Observation published -> its command received, as seen by the simulator.
+    pub round_trip: LatencySummary,
+    /// Wall time of one step's work (sensors, publishing, waiting for the command, physics);
+    /// in real time without the wait for the next tick.
+    pub step_time: LatencySummary,
+    /// Real time: how far past its 50 Hz tick each step finished (floor 1 us).
+    pub tick_late: LatencySummary,
+    /// Command published by the predictor -> taken in here (transport and wake-up).
+    pub cmd_to_sim: LatencySummary,
+    /// Real time: how late each step started against its 50 Hz schedule.
+    pub tick_jitter: LatencySummary,
+    /// Steps whose work took longer than the control period (their tick was missed).
+    pub overruns: u64,
+    /// Real time: when each missed command and overrun happened (the first 10,000), so that a
+    /// soak can tell the stack's own misses from the machine's pauses.
+    #[serde(default)]
+    pub incidents: Vec<Incident>,
+    /// Histograms (upper bound in us, count), for pictures.
+    pub step_time_hist: Vec<[f64; 2]>,
+    pub round_trip_hist: Vec<[f64; 2]>,
+    pub cmd_to_sim_hist: Vec<[f64; 2]>,
+    pub laps: u32,
+    pub lateral_error_m: LateralError,
+    /// Who drove, and how well (per command source).
+    pub control: ControlSummary,
+    /// Lockstep pacing on the trainer's updates.
+    pub pace: PaceSummary,
+    pub sim_seconds: f64,
+    pub wall_seconds: f64,
+}
+
+/// Who drove, and how well, per command source (the simulator knows every step's source).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ControlSummary {
+    /// Steps driven by each source (`reactive`, `exploration`, `active_inference`, `fallback`,
+    /// `teacher`).
+    pub steps: BTreeMap<String, u64>,
+    /// Mean |lateral error| (m) over the steps of each source that drove.
+    pub lateral_mean_m: BTreeMap<String, f64>,
+    /// Changes from another source to active inference and back.
+    pub switches: u64,
+    /// Times the fallback took over (the line lost under active inference).
+    pub fallbacks: u64,
+    /// Share of the steps driven by exploration segments.
+    pub exploration_fraction: f64,
+    /// Laps completed while active inference drove every step since the lap before (or since
+    /// it took over).
+    pub laps_completed_under_active_inference: u32,
+}
+
+/// Mean and max of |lateral error| in metres.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]
+pub struct LateralError {
+    pub mean: f64,
+    pub max: f64,
+}
+
+/// Lockstep pacing on the trainer's updates over the run.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct PaceSummary {
+    /// The configured rate (0: not paced).
+    pub target_updates_per_1000_steps: f64,
+    /// Trainer updates per 1000 steps since pacing began (once the trainer trained).
+    pub updates_per_1000_steps: f64,
+    /// Steps since pacing began, and the trainer's updates in them.
+    pub paced_steps: u64,
+    pub trainer_updates: u64,
+    /// Wall time spent waiting for the trainer.
+    pub wait_seconds: f64,
+}
