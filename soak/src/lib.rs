@@ -311,8 +311,6 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         overruns: sim.overruns,
         missed_commands: sim.missed_commands,
         dropped_commands: pred.commands_sent.saturating_sub(sim.commands_received),
-        frozen_command_waits: sim.frozen_command_waits,
-        frozen_wait_seconds: sim.frozen_wait_seconds,
         replay: ReplayCounts {
             chunks_sent: sim.replay_chunks_sent,
             chunks_received: tr.chunks_received,

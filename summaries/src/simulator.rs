@@ -19,12 +19,6 @@ pub struct Summary {
     pub missed_commands: u64,
     /// Commands that arrived for another step (late answers to earlier steps), dropped.
     pub stale_commands: u64,
-    /// Waits for a command in which the simulator itself was frozen (the machine paused), and
-    /// the time given back to the predictor for it (`command_wait.rs`).
-    #[serde(default)]
-    pub frozen_command_waits: u64,
-    #[serde(default)]
-    pub frozen_wait_seconds: f64,
     /// Non-finite commands rejected by the world.
     pub rejected_commands: u64,
     /// Steps driven by the teacher because no predictor was connected.

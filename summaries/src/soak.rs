@@ -25,12 +25,6 @@ pub struct SoakReport {
     pub missed_commands: u64,
     /// Commands the predictor sent that the simulator never took in.
     pub dropped_commands: u64,
-    /// Waits for a command in which the simulator itself was frozen (the machine paused); the
-    /// frozen time was given back to the predictor rather than counted as its miss.
-    #[serde(default)]
-    pub frozen_command_waits: u64,
-    #[serde(default)]
-    pub frozen_wait_seconds: f64,
     pub replay: ReplayCounts,
     /// Raw ping-pong round trips that never came back.
     pub raw_pingpong_lost: u64,

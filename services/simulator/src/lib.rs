@@ -3,7 +3,6 @@
 //! tests and data collection (`standalone`).
 
 pub mod chunk;
-pub mod command_wait;
 pub mod config;
 pub mod control_stats;
 pub mod drive_stats;

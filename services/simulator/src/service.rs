@@ -16,7 +16,6 @@ use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, TrainerStatus
 use mtanet_scenes::{Drive, ResetRule, Sensors, Teacher, Verdict, World};
 
 use crate::chunk::ChunkBuilder;
-use crate::command_wait::CommandDeadline;
 use crate::config::{MissPolicy, Mode, SimulatorConfig};
 use crate::control_stats::ControlStats;
 use crate::drive_stats::DriveStats;
@@ -128,7 +127,7 @@ pub fn run(
                 Duration::ZERO
             },
             shutdown,
-            &mut summary,
+            &mut summary.stale_commands,
         )?;
         let (cmd, source) = match answer {
             Some((c, received_ns)) => {
@@ -384,44 +383,26 @@ fn await_command(
     step: u64,
     timeout: Duration,
     shutdown: &Shutdown,
-    summary: &mut Summary,
+    stale: &mut u64,
 ) -> anyhow::Result<Option<(Command, u64)>> {
-    let mut deadline = CommandDeadline::new(Instant::now(), timeout);
-    let answer = wait_for_command(ports, step, &mut deadline, shutdown, summary);
-    if !deadline.frozen.is_zero() {
-        summary.frozen_command_waits += 1;
-        summary.frozen_wait_seconds += deadline.frozen.as_secs_f64();
-    }
-    answer
-}
-
-fn wait_for_command(
-    ports: &Ports,
-    step: u64,
-    deadline: &mut CommandDeadline,
-    shutdown: &Shutdown,
-    summary: &mut Summary,
-) -> anyhow::Result<Option<(Command, u64)>> {
+    let deadline = Instant::now() + timeout;
     loop {
         let mut found = None;
         ports.commands.for_each(|c| {
             if c.step == step {
                 found = Some((*c, stamp::monotonic_ns()));
             } else {
-                summary.stale_commands += 1;
+                *stale += 1;
             }
         })?;
         if found.is_some() {
             return Ok(found);
         }
-        let now = Instant::now();
-        let left = deadline.left(now);
+        let left = deadline.saturating_duration_since(Instant::now());
         if left.is_zero() || shutdown.requested() {
             return Ok(None);
         }
         // Short slices so a signal ends the wait quickly even if no command ever comes.
-        let slice = left.min(Duration::from_millis(50));
-        deadline.waiting(now, slice);
-        ports.commands.wait(slice)?;
+        ports.commands.wait(left.min(Duration::from_millis(50)))?;
     }
 }
