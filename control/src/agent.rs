@@ -125,9 +125,12 @@ impl Agent {
     /// that drive should be ones that passed. The trust ends by the model's own error
     /// (`distrust_ratio`); then any weights may be tried again while the rule drives.
     pub fn admits(&self, probe: Option<f64>) -> bool {
-        self.mode == Mode::Reactive
-            || self.cfg.min_probe <= -1.0
-            || probe.is_none_or(|p| p >= self.cfg.min_probe)
+        self.mode == Mode::Reactive || probe.is_none_or(|p| self.passes_probe(p))
+    }
+
+    /// The one bar for the probe, for trust and for weights that replace a driving model.
+    fn passes_probe(&self, probe: f64) -> bool {
+        self.cfg.min_probe <= -1.0 || probe >= self.cfg.min_probe
     }
 
     fn ticks(&self, seconds: f32) -> u32 {
@@ -373,7 +376,7 @@ impl Agent {
     /// Weights whose probe passes: fit to plan with, once their error is seen to be low.
     fn fit_for_control(&self, h: &Health) -> bool {
         self.cfg.enabled
-            && (self.cfg.min_probe <= -1.0 || h.probe.is_some_and(|p| p >= self.cfg.min_probe))
+            && (self.cfg.min_probe <= -1.0 || h.probe.is_some_and(|p| self.passes_probe(p)))
     }
 
     /// The probe no longer counts here: weights that fail it are not installed while the model
