@@ -1,12 +1,12 @@
 //! Drives an agent around a track in-process (no IPC), stepping the world through
-//! [`mtanet_scenes::Drive`] as the simulator service does, with lap and lateral-error
-//! bookkeeping per driver.
+//! [`mtanet_scenes::Drive`] as the simulator service does; laps and lateral error per driver
+//! come from its score.
 
 use std::time::Instant;
 
 use hdrhistogram::Histogram;
 use mtanet_control::{Agent, AgentModel, AgentStats, Driver, PlanService, Tick};
-use mtanet_scenes::{Drive, ResetRule, World};
+use mtanet_scenes::{CommandSource, Drive, ResetRule, World};
 use serde::{Deserialize, Serialize};
 
 use crate::oracle::SeesWorld;
@@ -89,18 +89,6 @@ pub struct DriveReport {
     pub trace: Vec<TracePoint>,
 }
 
-#[derive(Default)]
-struct Lateral {
-    sum: f64,
-    n: u64,
-}
-
-impl Lateral {
-    fn mean(&self) -> Option<f64> {
-        (self.n > 0).then(|| self.sum / self.n as f64)
-    }
-}
-
 /// Drives until `cfg.max_steps` or the lap goal.
 pub fn drive<M, P>(
     world: &mut World,
@@ -123,10 +111,6 @@ where
     let wall = Instant::now();
     let mut report = DriveReport::default();
     let mut plan_us = Histogram::<u64>::new(3)?;
-    let (mut lat_reactive, mut lat_ai) = (Lateral::default(), Lateral::default());
-    // Laps count under active inference only if it drove every step since the last lap.
-    let mut lap_all_ai = false;
-    let mut last_laps = 0u32;
     while car.steps() < cfg.max_steps {
         let f = car.sense();
         let s = &f.sensors;
@@ -142,16 +126,6 @@ where
         if let Some((_, compute)) = &d.plan {
             plan_us.record(compute.as_micros() as u64)?;
         }
-        let ai = d.driver == Driver::ActiveInference;
-        let lat = s.truth.lateral_m.abs();
-        if ai {
-            lat_ai.sum += lat;
-            lat_ai.n += 1;
-        } else {
-            lat_reactive.sum += lat;
-            lat_reactive.n += 1;
-            lap_all_ai = false;
-        }
         if cfg.trace_every > 0 && f.step % cfg.trace_every == 0 {
             report.trace.push(TracePoint {
                 step: f.step,
@@ -160,15 +134,7 @@ where
                 driver: d.driver,
             });
         }
-        let stepped = car.step(d.wheels);
-        if stepped.laps > last_laps {
-            if lap_all_ai {
-                report.laps_under_active_inference += stepped.laps - last_laps;
-            }
-            last_laps = stepped.laps;
-            lap_all_ai = true;
-        }
-        report.steps = car.steps();
+        let stepped = car.step(d.wheels, d.driver.source());
         if let Some(verdict) = stepped.reset {
             tracing::warn!(
                 step = f.step,
@@ -177,18 +143,21 @@ where
                 "car put back at the start"
             );
             report.lost_events += 1;
-            lap_all_ai = false;
         }
         if cfg.stop_after_ai_laps > 0
-            && report.laps_under_active_inference >= cfg.stop_after_ai_laps
+            && car.score().laps_under_active_inference() >= cfg.stop_after_ai_laps
         {
             break;
         }
     }
-    report.laps = last_laps;
+    let score = car.score();
+    report.steps = score.steps();
+    report.laps = score.laps();
+    report.laps_under_active_inference = score.laps_under_active_inference();
     report.sim_seconds = report.steps as f64 * period;
-    report.lateral_reactive_m = lat_reactive.mean();
-    report.lateral_active_inference_m = lat_ai.mean();
+    report.lateral_reactive_m = score.lateral_mean_of(|s| s != CommandSource::ActiveInference);
+    report.lateral_active_inference_m =
+        score.lateral_mean_of(|s| s == CommandSource::ActiveInference);
     report.agent = agent.stats;
     report.plan_ms = Millis::of(&plan_us);
     report.wall_seconds = wall.elapsed().as_secs_f64();
@@ -236,7 +205,7 @@ pub fn record_reactive(
         let d = agent.step(&t, &mut Blind, &mut NoPlans)?;
         frames.push(f.sensors.image);
         applied.push(f.applied);
-        if car.step(d.wheels).reset.is_some() {
+        if car.step(d.wheels, d.driver.source()).reset.is_some() {
             // A recording never spans a reset: start over.
             frames.clear();
             applied.clear();

@@ -18,6 +18,7 @@ pub mod stack;
 pub mod stamp;
 pub mod stats;
 pub mod systemd;
+pub mod wait;
 pub mod weights_topic;
 
 pub use messages::*;

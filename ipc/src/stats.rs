@@ -60,10 +60,21 @@ impl StatsPublisher {
         latency: impl FnOnce() -> LatencySummary,
         fill: impl FnOnce(&mut ProcessStats),
     ) -> Result<bool, PortError> {
-        let dt = self.last.elapsed();
-        if dt < self.every {
+        if self.last.elapsed() < self.every {
             return Ok(false);
         }
+        self.publish(count, latency, fill)?;
+        Ok(true)
+    }
+
+    /// Publishes now, due or not: the last word of a process whose work is done.
+    pub fn publish(
+        &mut self,
+        count: u64,
+        latency: impl FnOnce() -> LatencySummary,
+        fill: impl FnOnce(&mut ProcessStats),
+    ) -> Result<(), PortError> {
+        let dt = self.last.elapsed().max(Duration::from_micros(1));
         let cpu = cpu_seconds();
         let l = latency();
         let (role, restarts) = (self.role, self.restarts);
@@ -86,11 +97,11 @@ impl StatsPublisher {
                 l.p999_us as f32,
                 l.max_us as f32,
             );
-            s.quality = f32::NAN;
+            (s.model_over_copy_last, s.loss) = (f32::NAN, f32::NAN);
             fill(s);
         })?;
         (self.last, self.last_count, self.last_cpu_s) = (Instant::now(), Some(count), cpu);
-        Ok(true)
+        Ok(())
     }
 }
 
@@ -138,4 +149,9 @@ mod tests {
         assert!(used > 0.05, "200 ms of spinning showed {used} s of CPU");
         assert!(rss_kb() > 100, "rss {} kB", rss_kb());
     }
+}
+
+/// A count for a u32 field of [`ProcessStats`] (saturating: a status is never wrapped).
+pub fn saturate(n: u64) -> u32 {
+    n.min(u64::from(u32::MAX)) as u32
 }

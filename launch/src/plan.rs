@@ -7,7 +7,7 @@ use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use mtanet_ipc::stack::{ProcessSpec, StackConfig};
+use mtanet_ipc::stack::{ProcessSpec, RestartPolicy, StackConfig};
 
 use crate::stack::bin_dir;
 
@@ -31,7 +31,22 @@ pub struct Run {
     pub max_steps: Option<u64>,
     /// Leave the trainer out (drive a fixed checkpoint).
     pub no_trainer: bool,
+    /// Record the run's topics (`mta record`).
+    pub record: Option<Recording>,
 }
+
+/// What a recorder of the run writes.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    pub out: PathBuf,
+    /// Its summary (`RecordSummary` as JSON).
+    pub summary: PathBuf,
+    /// The weights' checkpoint bytes too (~1 MB each), not only their headers.
+    pub weight_blobs: bool,
+}
+
+/// The recorder's name in a plan.
+pub const RECORDER: &str = "recorder";
 
 /// One process of the plan: its entry of `[stack]` and its whole argument list.
 #[derive(Debug, Clone)]
@@ -40,17 +55,37 @@ pub struct Launch {
     pub args: Vec<String>,
 }
 
-/// The processes of `stack` in start order, each with its arguments for `run`.
+/// The processes of `stack` in start order, each with its arguments for `run`; a recorder
+/// first, so it hears the first observation (and, stopped last, the last).
 pub fn plan(stack: &StackConfig, run: &Run) -> Vec<Launch> {
-    stack
+    let recorder = run.record.as_ref().map(|_| {
+        let spec = ProcessSpec {
+            name: RECORDER.into(),
+            binary: "mta".into(),
+            description: "mtanet recorder".into(),
+            args: vec![],
+            // A recorder that failed costs the recording, not the run.
+            restart: RestartPolicy {
+                on_failure: false,
+                ..Default::default()
+            },
+            watchdog_s: 10,
+            realtime_priority: None,
+        };
+        Launch {
+            args: args(&spec, run),
+            spec,
+        }
+    });
+    let stack = stack
         .process
         .iter()
         .filter(|spec| !(run.no_trainer && spec.binary == "mta-trainer"))
         .map(|spec| Launch {
             spec: spec.clone(),
             args: args(spec, run),
-        })
-        .collect()
+        });
+    recorder.into_iter().chain(stack).collect()
 }
 
 /// The arguments of process `binary` in the default stack for `run` (the system tests start
@@ -68,6 +103,9 @@ pub fn args_of(binary: &str, run: &Run) -> Vec<String> {
 fn args(spec: &ProcessSpec, run: &Run) -> Vec<String> {
     let path = |p: &Path| p.to_string_lossy().into_owned();
     let mut a: Vec<String> = Vec::new();
+    if spec.name == RECORDER {
+        a.push("record".into());
+    }
     let mut flag = |name: &str, value: String| a.extend([format!("--{name}"), value]);
     if let Some(c) = &run.config {
         flag("config", path(c));
@@ -75,10 +113,21 @@ fn args(spec: &ProcessSpec, run: &Run) -> Vec<String> {
     if let Some(ns) = &run.namespace {
         flag("namespace", ns.clone());
     }
-    if let Some(dir) = &run.summaries {
+    if let Some(dir) = &run.summaries
+        && spec.name != RECORDER
+    {
         flag("summary", path(&dir.join(format!("{}.json", spec.binary))));
     }
     match spec.binary.as_str() {
+        "mta" => {
+            if let Some(r) = &run.record {
+                flag("summary", path(&r.summary));
+                flag("out", path(&r.out));
+                if r.weight_blobs {
+                    a.push("--weight-blobs".into());
+                }
+            }
+        }
         "mta-trainer" => {
             if let Some(t) = &run.track {
                 flag("track", path(t));
@@ -202,5 +251,32 @@ mod tests {
         let p = plan(&StackConfig::default(), &run);
         assert_eq!(p.len(), 2);
         assert!(p.iter().all(|l| l.args == l.spec.args), "{p:?}");
+    }
+
+    #[test]
+    fn a_recorder_starts_first_with_its_own_files() {
+        let run = Run {
+            config: Some("/c.toml".into()),
+            namespace: Some("ns1".into()),
+            summaries: Some("/out".into()),
+            record: Some(Recording {
+                out: "/out/r.mcap".into(),
+                summary: "/out/r.json".into(),
+                weight_blobs: true,
+            }),
+            ..Default::default()
+        };
+        let p = plan(&StackConfig::default(), &run);
+        assert_eq!(p.len(), 4);
+        assert_eq!(
+            (p[0].spec.name.as_str(), p[0].spec.binary.as_str()),
+            (RECORDER, "mta")
+        );
+        assert!(!p[0].spec.restart.on_failure);
+        assert_eq!(
+            p[0].args.join(" "),
+            "record --config /c.toml --namespace ns1 --summary /out/r.json --out /out/r.mcap --weight-blobs"
+        );
+        assert_eq!(p[1].spec.binary, "mta-trainer");
     }
 }

@@ -58,7 +58,7 @@ pub struct UpArgs {
     namespace: Option<String>,
 }
 
-const RECORDER: &str = "recorder";
+use crate::plan::RECORDER;
 
 fn default_out() -> PathBuf {
     let now = std::process::Command::new("date")
@@ -115,45 +115,11 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         config.display()
     );
 
-    let arg = |p: &Path| p.to_string_lossy().into_owned();
     let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
     let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
     let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
     let mut order = Vec::new();
-    if args.record {
-        // First, so it hears the first observation, and stopped last, so it hears the last.
-        let spec = mtanet_ipc::stack::ProcessSpec {
-            name: RECORDER.into(),
-            binary: "mta".into(),
-            description: "mtanet recorder".into(),
-            args: vec![],
-            restart: mtanet_ipc::stack::RestartPolicy {
-                on_failure: false,
-                ..Default::default()
-            },
-            watchdog_s: 10,
-            realtime_priority: None,
-        };
-        let mut a: Vec<String> = [
-            "record",
-            "--config",
-            &arg(&config),
-            "--namespace",
-            &ipc.namespace,
-            "--summary",
-            &arg(&out.join("recording.json")),
-            "--out",
-            &arg(&out.join("recording.mcap")),
-        ]
-        .map(String::from)
-        .into();
-        if args.record_weight_blobs {
-            a.push("--weight-blobs".into());
-        }
-        sup.add(&spec, a)?;
-        order.push(spec.name.clone());
-    }
     let run = crate::plan::Run {
         config: Some(config.clone()),
         namespace: Some(ipc.namespace.clone()),
@@ -164,6 +130,11 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         max_steps: (args.sim_seconds > 0.0)
             .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
         no_trainer: args.no_learning,
+        record: args.record.then(|| crate::plan::Recording {
+            out: out.join("recording.mcap"),
+            summary: out.join("recording.json"),
+            weight_blobs: args.record_weight_blobs,
+        }),
     };
     for launch in crate::plan::plan(&stack, &run) {
         sup.add(&launch.spec, launch.args)?;
@@ -195,7 +166,9 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     }
     mtanet_files::write_json(
         &out.join("supervisor.json"),
-        &serde_json::json!({ "restarts": sup.restarts() }),
+        &mtanet_summaries::supervisor::SupervisorSummary {
+            restarts: sup.restarts(),
+        },
     )?;
     let latest = ck_dir.join("latest.safetensors");
     if latest.exists() {
@@ -209,8 +182,8 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         r.steps,
         r.sim_seconds,
         r.wall_seconds,
-        r.laps["completed"],
-        r.laps["completed_under_active_inference"],
+        r.laps.completed,
+        r.laps.completed_under_active_inference,
         r.control,
         out.join("report.json").display()
     );

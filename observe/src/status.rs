@@ -80,22 +80,30 @@ fn finite(x: f32) -> Option<f64> {
 pub fn view(s: &ProcessStats) -> ProcessView {
     use serde_json::json;
     let mut detail = BTreeMap::new();
-    let (x, faults) = (s.laps_or_driver_or_fill, s.faults);
     match s.role() {
         "simulator" => {
-            detail.insert("laps", json!(x));
-            detail.insert("missed_commands", json!(faults));
+            detail.insert("laps", json!(s.laps));
+            detail.insert("missed_commands", json!(s.missed_commands));
         }
         "predictor" => {
-            let driver = CommandSource::from_u32(x).map_or("?", CommandSource::name);
+            let driver = CommandSource::from_u32(s.driver).map_or("?", CommandSource::name);
             detail.insert("driver", json!(driver));
-            detail.insert("fallbacks", json!(faults));
-            detail.insert("model_over_copy_last", json!(finite(s.quality)));
+            detail.insert("fallbacks", json!(s.fallbacks));
+            detail.insert(
+                "model_over_copy_last",
+                json!(finite(s.model_over_copy_last)),
+            );
+            detail.insert("model_version", json!(s.model_version));
+            detail.insert("weights_installed", json!(s.weights_installed));
+            detail.insert("weights_rejected", json!(s.weights_rejected));
+            detail.insert("weights_held_back", json!(s.weights_held_back));
         }
         "trainer" => {
-            detail.insert("replay_sequences", json!(x));
-            detail.insert("chunks_lost", json!(faults));
-            detail.insert("loss", json!(finite(s.quality)));
+            detail.insert("replay_sequences", json!(s.replay_sequences));
+            detail.insert("chunks_lost", json!(s.chunks_lost));
+            detail.insert("loss", json!(finite(s.loss)));
+            detail.insert("weights_published", json!(s.weights_published));
+            detail.insert("resumed_from_update", json!(s.resumed_from_update));
         }
         _ => {}
     }

@@ -14,7 +14,7 @@ use mtanet_ipc::ports::{Receiver, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::weights_topic::WeightsReceiver;
 use mtanet_ipc::{Command, Observation, ReplayChunk, TrainerStatus, names, systemd};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::format::{RecordingWriter, TOPICS};
 
@@ -38,9 +38,10 @@ pub struct RecordArgs {
 }
 
 /// What a recording run reports at its end (stderr, and `--summary`).
-#[derive(Debug, Default, Serialize)]
+#[derive(Debug, Default, Serialize, Deserialize)]
 pub struct RecordSummary {
-    pub messages: std::collections::BTreeMap<&'static str, u64>,
+    /// Messages recorded, by topic.
+    pub messages: std::collections::BTreeMap<String, u64>,
     pub bytes: u64,
     pub seconds: f64,
     /// Steps missing between recorded observations (commands) of one simulator run.
@@ -165,7 +166,10 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
     let counts = out.counts.clone();
     out.finish()?;
     let summary = RecordSummary {
-        messages: counts,
+        messages: counts
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
         bytes: std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
         seconds: start.elapsed().as_secs_f64(),
         missed_observations: obs_gaps.missed,

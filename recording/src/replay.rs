@@ -17,7 +17,7 @@ use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, names, stamp};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::format::{self, Recorded};
 
@@ -48,14 +48,15 @@ pub struct ReplayArgs {
 }
 
 /// A command that differed from the recorded one.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Difference {
     pub step: u64,
-    pub recorded: ([f32; 2], &'static str),
-    pub replayed: ([f32; 2], &'static str),
+    pub recorded: ([f32; 2], String),
+    pub replayed: ([f32; 2], String),
 }
 
-#[derive(Debug, Default, Serialize)]
+/// What `mta replay` reports (`--summary FILE`).
+#[derive(Debug, Default, Serialize, Deserialize)]
 pub struct ReplaySummary {
     pub observations_sent: u64,
     pub weights_sent: u64,
@@ -103,8 +104,8 @@ impl Comparison {
         } else if self.summary.first_difference.is_none() {
             self.summary.first_difference = Some(Difference {
                 step: c.step,
-                recorded: (r.wheel_velocity, name(r.source)),
-                replayed: (c.wheel_velocity, name(c.source)),
+                recorded: (r.wheel_velocity, name(r.source).into()),
+                replayed: (c.wheel_velocity, name(c.source).into()),
             });
         }
     }

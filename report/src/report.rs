@@ -16,6 +16,7 @@ use anyhow::Context;
 use mtanet_summaries::predictor::Summary as PredictorSummary;
 use mtanet_summaries::simulator::Summary as SimulatorSummary;
 use mtanet_summaries::soak::Control;
+use mtanet_summaries::supervisor::SupervisorSummary;
 use mtanet_summaries::trainer::Summary as TrainerSummary;
 use mtanet_summaries::{LatencySummary, PlanningSummary};
 use serde::{Deserialize, Serialize};
@@ -49,19 +50,73 @@ pub struct Report {
     /// What the plans could afford in real time (iterations, candidates, the share cut by
     /// their deadline, the cost reached); absent without a predictor.
     pub planning: Option<PlanningSummary>,
-    pub laps: serde_json::Value,
-    pub lateral_error_m: serde_json::Value,
-    pub prediction: serde_json::Value,
-    pub probe: serde_json::Value,
+    pub laps: Laps,
+    pub lateral_error_m: LateralByDriver,
+    pub prediction: Prediction,
+    pub probe: Probe,
     pub latency: BTreeMap<String, LatencySummary>,
     /// Steps whose command did not come within the simulator's wait (the fallback drove).
     pub missed_commands: u64,
     /// Steps whose work took longer than their 20 ms period.
     pub overruns: u64,
-    pub trainer: serde_json::Value,
-    pub replay: serde_json::Value,
+    pub trainer: TrainerFigures,
+    pub replay: ReplayFigures,
     /// Restarts of each process by the supervisor (`mta up`).
-    pub restarts: serde_json::Value,
+    pub restarts: BTreeMap<String, u32>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Laps {
+    pub completed: u32,
+    /// Laps in which active inference decided every step, from the lap's first.
+    pub completed_under_active_inference: u32,
+    /// Times the car lost the line (or drove the wrong way) and was put back at the start.
+    pub lost_line_events: u64,
+    pub wrong_way_events: u64,
+}
+
+/// Mean |lateral error| in metres over the steps each driver drove (None: it never drove).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct LateralByDriver {
+    /// The reactive rule's own steps; its exploration segments and the fallback apart.
+    pub reactive_mean: Option<f64>,
+    pub active_inference_mean: Option<f64>,
+    pub exploration_mean: Option<f64>,
+    pub fallback_mean: Option<f64>,
+    pub all_mean: f64,
+}
+
+/// The live model's next-frame error and the copy-last-frame baseline's, over the run.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Prediction {
+    pub mse: Option<f64>,
+    pub copy_last_mse: Option<f64>,
+}
+
+/// The counterfactual probe of the newest weights: the trainer's, else the predictor's.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Probe {
+    pub rank_correlation: Option<f64>,
+    /// The training update it was measured at.
+    pub step: Option<u64>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct TrainerFigures {
+    pub updates: Option<u64>,
+    pub session_updates: Option<u64>,
+    /// Lockstep: the pace reached, and the one asked for (0: not paced).
+    pub updates_per_1000_steps: Option<f64>,
+    pub pace_target: f64,
+    pub update_time: Option<LatencySummary>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ReplayFigures {
+    pub chunks_sent: u64,
+    pub chunks_received: Option<u64>,
+    pub chunks_lost: Option<u64>,
+    pub exploration_fraction: Option<f64>,
 }
 
 /// A summary, or `None` where the process wrote none.
@@ -96,7 +151,7 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
     })?;
     let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
     let tr: Option<TrainerSummary> = read_json(&dir.join("mta-trainer.json"))?;
-    let sup: Option<serde_json::Value> = read_json(&dir.join("supervisor.json"))?;
+    let sup: Option<SupervisorSummary> = read_json(&dir.join("supervisor.json"))?;
     let c = &sim.control;
     let lat = |k: &str| c.lateral_mean_m.get(k).copied();
     let mut latency = BTreeMap::new();
@@ -117,45 +172,48 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
         lockstep: info.lockstep,
         control: Control::new(c, pred.as_ref().map(|p| &p.control)),
         planning: pred.as_ref().map(|p| p.planning),
-        laps: serde_json::json!({
-            "completed": sim.laps,
-            "completed_under_active_inference": c.laps_completed_under_active_inference,
-            "lost_line_events": sim.resets - sim.wrong_way_resets,
-            "wrong_way_events": sim.wrong_way_resets,
-        }),
-        lateral_error_m: serde_json::json!({
-            // The reactive rule's own steps; its exploration segments and the fallback apart.
-            "reactive_mean": lat("reactive"),
-            "active_inference_mean": lat("active_inference"),
-            "exploration_mean": lat("exploration"),
-            "fallback_mean": lat("fallback"),
-            "all_mean": sim.lateral_error_m.mean,
-        }),
-        prediction: serde_json::json!({
-            "mse": pred.as_ref().and_then(|p| p.model_mse),
-            "copy_last_mse": pred.as_ref().and_then(|p| p.copy_last_mse),
-        }),
-        probe: serde_json::json!({
-            "rank_correlation": tr.as_ref().and_then(|t| t.probe).or(pred.as_ref().and_then(|p| p.probe)),
-            "step": tr.as_ref().and_then(|t| t.probe_step),
-        }),
+        laps: Laps {
+            completed: sim.laps,
+            completed_under_active_inference: c.laps_completed_under_active_inference,
+            lost_line_events: sim.resets - sim.wrong_way_resets,
+            wrong_way_events: sim.wrong_way_resets,
+        },
+        lateral_error_m: LateralByDriver {
+            reactive_mean: lat("reactive"),
+            active_inference_mean: lat("active_inference"),
+            exploration_mean: lat("exploration"),
+            fallback_mean: lat("fallback"),
+            all_mean: sim.lateral_error_m.mean,
+        },
+        prediction: Prediction {
+            mse: pred.as_ref().and_then(|p| p.model_mse),
+            copy_last_mse: pred.as_ref().and_then(|p| p.copy_last_mse),
+        },
+        probe: Probe {
+            rank_correlation: tr
+                .as_ref()
+                .and_then(|t| t.probe)
+                .or(pred.as_ref().and_then(|p| p.probe)),
+            step: tr.as_ref().and_then(|t| t.probe_step),
+        },
         latency,
         missed_commands: sim.missed_commands,
         overruns: sim.overruns,
-        trainer: serde_json::json!({
-            "updates": tr.as_ref().map(|t| t.updates),
-            "session_updates": tr.as_ref().map(|t| t.session_updates),
-            "updates_per_1000_steps": (sim.pace.paced_steps > 0).then_some(sim.pace.updates_per_1000_steps),
-            "pace_target": sim.pace.target_updates_per_1000_steps,
-            "update_time": tr.as_ref().map(|t| t.update_time),
-        }),
-        replay: serde_json::json!({
-            "chunks_sent": sim.replay_chunks_sent,
-            "chunks_received": tr.as_ref().map(|t| t.chunks_received),
-            "chunks_lost": tr.as_ref().map(|t| t.chunks_lost),
-            "exploration_fraction": tr.as_ref().map(|t| t.exploration_fraction),
-        }),
-        restarts: sup.map(|s| s["restarts"].clone()).unwrap_or_default(),
+        trainer: TrainerFigures {
+            updates: tr.as_ref().map(|t| t.updates),
+            session_updates: tr.as_ref().map(|t| t.session_updates),
+            updates_per_1000_steps: (sim.pace.paced_steps > 0)
+                .then_some(sim.pace.updates_per_1000_steps),
+            pace_target: sim.pace.target_updates_per_1000_steps,
+            update_time: tr.as_ref().map(|t| t.update_time),
+        },
+        replay: ReplayFigures {
+            chunks_sent: sim.replay_chunks_sent,
+            chunks_received: tr.as_ref().map(|t| t.chunks_received),
+            chunks_lost: tr.as_ref().map(|t| t.chunks_lost),
+            exploration_fraction: tr.as_ref().map(|t| t.exploration_fraction),
+        },
+        restarts: sup.map(|s| s.restarts).unwrap_or_default(),
     };
     mtanet_files::write_json(&dir.join("report.json"), &report)?;
     if let Err(e) = pictures::lap_trace(dir, &info.track) {

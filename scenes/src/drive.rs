@@ -1,9 +1,11 @@
 //! One car driven round its track, one control step at a time, with no IPC and no clock: the
 //! simulator service, the standalone teacher run and `eval`'s in-process drive all step the world
-//! through [`Drive`], so a step, a lost car, an episode and a lap mean the same in each. Where a
-//! command comes from and when the next step is due are the caller's.
+//! through [`Drive`], so a step, a lost car, an episode, a lap and who drove it mean the same in
+//! each, and are counted once, in its [`Score`]. Where a command comes from and when the next step
+//! is due are the caller's.
 
-use crate::{Referee, Sensors, Verdict, World};
+use crate::score::{CommandSource, Score};
+use crate::{GroundTruth, Referee, Sensors, Verdict, World};
 
 /// When a car is put back at the start as a new episode (see [`Referee`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,6 +58,9 @@ pub struct Drive<'w> {
     step: u64,
     episode: u32,
     laps_before: u32,
+    /// The truth at the last `sense`, scored with the command that answers it.
+    sensed: Option<GroundTruth>,
+    score: Score,
 }
 
 impl<'w> Drive<'w> {
@@ -72,30 +77,38 @@ impl<'w> Drive<'w> {
             step: 0,
             episode: 0,
             laps_before: 0,
+            sensed: None,
+            score: Score::default(),
         }
     }
 
     /// The sensors now, and the command that led here.
     pub fn sense(&mut self) -> Frame {
+        let sensors = self.world.sense();
+        self.sensed = Some(sensors.truth);
         Frame {
             step: self.step,
             episode: self.episode,
             time_s: self.world.time_s(),
             applied: self.world.command().map(|v| v as f32),
-            sensors: self.world.sense(),
+            sensors,
         }
     }
 
-    /// Applies `command` for one control period, then judges the car: a lost car (or one
-    /// driving the wrong way) is put back at the start as a new episode.
-    pub fn step(&mut self, command: [f32; 2]) -> Stepped {
+    /// Applies `command`, decided by `source`, for one control period and scores the step; then
+    /// judges the car: a lost car (or one driving the wrong way) is put back at the start as a
+    /// new episode.
+    pub fn step(&mut self, command: [f32; 2], source: CommandSource) -> Stepped {
+        let from = self.sensed.take().unwrap_or_else(|| self.world.truth());
         let accepted = self.world.step(command);
         self.step += 1;
         let laps = self.laps_before + self.world.truth().laps;
         let verdict = self
             .referee
             .judge(&self.world.truth(), self.world.progress_m());
+        self.score.record(&from, source, laps);
         let reset = (verdict != Verdict::Fine).then(|| {
+            self.score.end_episode();
             self.laps_before = laps;
             self.world.reset();
             self.referee.reset();
@@ -112,6 +125,11 @@ impl<'w> Drive<'w> {
     /// Steps taken so far.
     pub fn steps(&self) -> u64 {
         self.step
+    }
+
+    /// Laps, lateral error and who drove, over every step so far.
+    pub fn score(&self) -> &Score {
+        &self.score
     }
 
     pub fn episode(&self) -> u32 {

@@ -6,7 +6,8 @@
 //! - [`Track`]: a closed polyline loaded from `tracks/*.csv` and validated.
 //! - [`World`]: MJCF generated from the track, compiled and stepped with MuJoCo 3.17.
 //! - [`Sensors`]: camera image, line sensors, wheel velocities, ground truth for evaluation.
-//! - [`Drive`]: one car stepped round its track, lost cars put back as new episodes (no IPC).
+//! - [`Drive`]: one car stepped round its track, lost cars put back as new episodes (no IPC),
+//!   with its [`Score`]: laps, lateral error and who drove.
 //! - [`Teacher`]: the classic line-tracer rule with seeded exploration noise.
 
 pub mod camera;
@@ -16,6 +17,7 @@ mod cull;
 pub mod drive;
 pub mod mjcf;
 mod referee;
+pub mod score;
 mod teacher;
 /// The tracks (`mtanet-track`), here under their old path.
 pub use mtanet_track as track;
@@ -23,8 +25,9 @@ mod truth;
 mod world;
 
 pub use config::{SceneConfig, SceneError, shipped_track, tracks_dir};
-pub use drive::{Drive, ResetRule};
+pub use drive::{Drive, Frame, ResetRule, Stepped};
 pub use referee::{Referee, Verdict};
+pub use score::{CommandSource, ControlSummary, LateralError, Score};
 pub use teacher::{Teacher, TeacherConfig};
 pub use track::{Track, TrackError};
 pub use truth::GroundTruth;

@@ -234,7 +234,8 @@ fn middle_line_sensor_agrees_with_ground_truth() {
 /// new episode within the reset window, and laps keep counting over episodes.
 #[test]
 fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes() {
-    use mtanet_scenes::{Drive, ResetRule, Verdict};
+    use mtanet_scenes::{CommandSource, Drive, ResetRule, Verdict};
+    let teacher = CommandSource::Teacher;
     let mut w = World::new(&SceneConfig::default().with_track(shipped_track("oval"))).unwrap();
     let mut t = Teacher::new(&TeacherConfig::default());
     let rule = ResetRule::default();
@@ -243,7 +244,7 @@ fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes()
     // The teacher laps once...
     while laps < 1 {
         let f = car.sense();
-        let stepped = car.step(t.act(&f.sensors));
+        let stepped = car.step(t.act(&f.sensors), teacher);
         assert!(stepped.accepted && stepped.reset.is_none(), "{stepped:?}");
         laps = stepped.laps;
         assert!(car.steps() < 3000, "no lap in 60 s");
@@ -252,7 +253,7 @@ fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes()
     let window = (rule.after_lost_s / CONTROL_PERIOD_S) as u64;
     let backing = car.steps();
     let reset = loop {
-        let stepped = car.step([-8.0, -8.0]);
+        let stepped = car.step([-8.0, -8.0], teacher);
         assert_eq!(stepped.laps, laps, "reversing completes no lap");
         if let Some(v) = stepped.reset {
             break v;
@@ -270,6 +271,12 @@ fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes()
     );
     // The lap of the first episode still counts after the reset.
     t.reset();
-    let stepped = car.step(t.act(&f.sensors));
+    let stepped = car.step(t.act(&f.sensors), teacher);
     assert_eq!(stepped.laps, laps);
+    // The score saw every step, the lap included, all of them the teacher's.
+    let score = car.score();
+    assert_eq!(score.steps(), car.steps());
+    assert_eq!(score.laps(), laps);
+    assert_eq!(score.steps_of(teacher), car.steps());
+    assert_eq!(score.laps_under_active_inference(), 0);
 }

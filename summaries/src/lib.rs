@@ -11,11 +11,14 @@ pub mod planning;
 pub mod predictor;
 pub mod simulator;
 pub mod soak;
+pub mod source;
+pub mod supervisor;
 pub mod trainer;
 
 pub use agent::AgentStats;
 pub use latency::LatencySummary;
 pub use planning::PlanningSummary;
+pub use source::CommandSource;
 
 /// Simulated seconds between two observations (the paper's 0.02 s): steps to seconds in
 /// reports. `mtanet_ipc::CONTROL_PERIOD_S` is checked equal to it at compile time.

@@ -14,6 +14,9 @@ pub struct Summary {
     /// Observations whose step did not follow the previous one (lost or reordered).
     pub step_gaps: u64,
     pub weights_received: u64,
+    /// Weights put in use.
+    #[serde(default)]
+    pub weights_installed: u64,
     /// Weights that failed to decode or did not fit; the previous model stayed in use.
     pub weights_rejected: u64,
     /// Weights whose probe failed while the model in hand drove: that one kept driving.

@@ -26,6 +26,9 @@ pub struct Summary {
     pub updates_refused: u64,
     pub last_loss: Option<f64>,
     pub weights_published: u64,
+    /// The update count of the checkpoint this trainer resumed from (0: a fresh start).
+    #[serde(default)]
+    pub resumed_from_update: u64,
     /// Wall time of one training update.
     pub update_time: LatencySummary,
 }

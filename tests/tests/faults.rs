@@ -180,7 +180,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     // The restarted predictor got the newest weights at once: its model steps.
     let predictor = sup.pid("predictor").unwrap();
     StatsWatch::open(&ns).wait_for("predictor", Duration::from_secs(60), |s| {
-        s.pid == predictor && s.quality.is_finite()
+        s.pid == predictor && s.model_over_copy_last.is_finite()
     });
 
     // `mta status` sees the restarted stack from its stats topic: every process once restarted,

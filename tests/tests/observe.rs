@@ -7,6 +7,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
+use mtanet_recording::record::RecordSummary;
+use mtanet_recording::replay::ReplaySummary;
+use mtanet_report::report::Report;
 use mtanet_system_tests::{
     Proc, arg, bin, nodes, read_json, remove_namespace_files, unique_namespace, wait_for_alive,
 };
@@ -132,20 +135,18 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         dir.path(),
     );
     let run = dir.path().join("run");
-    let report: serde_json::Value = read_json(&run.join("report.json"));
-    let ai = report["control"]["active_inference_steps"]
-        .as_u64()
-        .unwrap();
+    let report: Report = read_json(&run.join("report.json"));
+    let ai = report.control.active_inference_steps;
     assert!(
         ai > 300,
-        "active inference must drive in the recording: {report:#}"
+        "active inference must drive in the recording: {report:#?}"
     );
-    let rec: serde_json::Value = read_json(&run.join("recording.json"));
-    assert_eq!(rec["messages"]["mtanet/observation"], 2000, "{rec:#}");
-    assert_eq!(rec["messages"]["mtanet/command"], 2000, "{rec:#}");
-    assert_eq!(rec["missed_observations"], 0, "{rec:#}");
+    let rec: RecordSummary = read_json(&run.join("recording.json"));
+    assert_eq!(rec.messages["mtanet/observation"], 2000, "{rec:#?}");
+    assert_eq!(rec.messages["mtanet/command"], 2000, "{rec:#?}");
+    assert_eq!(rec.missed_observations, 0, "{rec:#?}");
     let size = std::fs::metadata(run.join("recording.mcap")).unwrap().len();
-    println!("recording: {size} bytes for 2000 steps; {rec}");
+    println!("recording: {size} bytes for 2000 steps; {rec:?}");
 
     // A fresh predictor from the run's own start checkpoint and config, in another namespace.
     let ns2 = unique_namespace("rep");
@@ -185,11 +186,11 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         String::from_utf8_lossy(&out.stderr),
         predictor.log_tail()
     );
-    let s: serde_json::Value = read_json(&summary);
-    println!("replay: {s}");
-    assert_eq!(s["observations_sent"], 2000, "{s:#}");
-    assert_eq!(s["compared"], 2000, "{s:#}");
-    assert_eq!(s["identical"], 2000, "{s:#}");
+    let s: ReplaySummary = read_json(&summary);
+    println!("replay: {s:?}");
+    assert_eq!(s.observations_sent, 2000, "{s:#?}");
+    assert_eq!(s.compared, 2000, "{s:#?}");
+    assert_eq!(s.identical, 2000, "{s:#?}");
 
     // A recording cut short (a recorder killed mid-run): what is readable is replayed, and the
     // summary says where it stopped.
@@ -210,14 +211,12 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let s: serde_json::Value = read_json(&summary);
-    let sent = s["observations_sent"].as_u64().unwrap();
-    assert!(sent > 0 && sent < 2000, "{s:#}");
+    let s: ReplaySummary = read_json(&summary);
+    let sent = s.observations_sent;
+    assert!(sent > 0 && sent < 2000, "{s:#?}");
     assert!(
-        s["damaged"]
-            .as_str()
-            .is_some_and(|d| d.contains("cut.mcap")),
-        "{s:#}"
+        s.damaged.as_deref().is_some_and(|d| d.contains("cut.mcap")),
+        "{s:#?}"
     );
 
     predictor.signal(libc::SIGTERM);

@@ -106,7 +106,9 @@ fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
     predictor.signal(SIGKILL);
     predictor.wait(Duration::from_secs(5));
     // The simulator notices the silence, cleans the dead node and lets the teacher drive.
-    stats.wait_for("simulator", Duration::from_secs(30), |s| s.faults > 0);
+    stats.wait_for("simulator", Duration::from_secs(30), |s| {
+        s.missed_commands > 0
+    });
     wait_until(
         "the dead predictor's node cleaned",
         Duration::from_secs(30),
@@ -196,20 +198,20 @@ fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
     let mut trainer = start("mta-trainer", &run, &[], dir.path());
     let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
-    // Frozen inside its loop, subscribed but not yet connected to any simulator.
-    assert!(
-        trainer.wait_for_log("waiting for replay chunks", Duration::from_secs(60)),
-        "{}",
-        trainer.log_tail()
-    );
+    let stats = StatsWatch::open(&ns);
+    // Frozen inside its loop (it reports from there), subscribed but not yet connected to any
+    // simulator.
+    stats.wait_for("trainer", Duration::from_secs(60), |_| true);
     trainer.signal(libc::SIGSTOP);
     let mut sim = start("mta-simulator", &run, &["--expect-trainer"], dir.path());
+    // The run's last figures come right before the simulator lingers for its subscriber.
+    stats.wait_for("simulator", Duration::from_secs(60), |s| s.count == 200);
     assert!(
-        sim.wait_for_log("lingering", Duration::from_secs(60)),
-        "the simulator did not linger for its subscriber:\n{}",
-        sim.log_tail()
+        sim.is_running(),
+        "the simulator did not linger for its subscriber"
     );
     trainer.signal(libc::SIGCONT);
+    drop(stats); // its node must be gone before the namespace is checked
     exit_ok(&mut sim);
     for p in [&predictor, &trainer] {
         p.signal(SIGTERM);

@@ -26,6 +26,19 @@ pub enum Driver {
     Fallback,
 }
 
+impl Driver {
+    /// The same as the wire's and the reports' vocabulary.
+    pub fn source(self) -> mtanet_summaries::CommandSource {
+        use mtanet_summaries::CommandSource as S;
+        match self {
+            Driver::Reactive => S::Reactive,
+            Driver::Exploration => S::Exploration,
+            Driver::ActiveInference => S::ActiveInference,
+            Driver::Fallback => S::Fallback,
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AgentConfig {

@@ -2,6 +2,7 @@ use bytemuck::Zeroable;
 use iceoryx2::prelude::ZeroCopySend;
 
 use crate::ACTION_DIM;
+pub use mtanet_summaries::CommandSource;
 
 /// The wheel command answering one observation.
 #[derive(Debug, Clone, Copy, Zeroable, bytemuck::Pod, ZeroCopySend)]
@@ -26,53 +27,4 @@ pub struct Command {
     pub model_error_ratio: f32,
     /// Counterfactual probe of the weights in use (NaN: not measured).
     pub probe: f32,
-}
-
-/// Who decided a command.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum CommandSource {
-    /// A fixed reactive rule on the line sensors (no model yet).
-    Reactive = 0,
-    /// The simulator's teacher driver.
-    Teacher = 1,
-    /// Active inference through the world model.
-    ActiveInference = 2,
-    /// A random exploration segment while the reactive rule drives (learning data).
-    Exploration = 3,
-    /// The reactive rule after the line was lost under active inference.
-    Fallback = 4,
-}
-
-impl CommandSource {
-    /// Every source, in value order.
-    pub const ALL: [CommandSource; 5] = [
-        Self::Reactive,
-        Self::Teacher,
-        Self::ActiveInference,
-        Self::Exploration,
-        Self::Fallback,
-    ];
-
-    /// Lower-case name for reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Reactive => "reactive",
-            Self::Teacher => "teacher",
-            Self::ActiveInference => "active_inference",
-            Self::Exploration => "exploration",
-            Self::Fallback => "fallback",
-        }
-    }
-
-    pub fn from_u32(v: u32) -> Option<Self> {
-        match v {
-            0 => Some(Self::Reactive),
-            1 => Some(Self::Teacher),
-            2 => Some(Self::ActiveInference),
-            3 => Some(Self::Exploration),
-            4 => Some(Self::Fallback),
-            _ => None,
-        }
-    }
 }

@@ -1,11 +1,12 @@
 use bytemuck::Zeroable;
 use iceoryx2::prelude::ZeroCopySend;
 
-/// What one process says of itself once a second on [`crate::names::STATS`], for `mta status`
-/// (and a live view): one message type for every process, with the fields that do not apply to
-/// it left at zero (NaN for the floats). Percentiles are since the process started.
+/// What one process says of itself once a second on [`crate::names::STATS`], for `mta status`,
+/// `mta top` and tests: one message type for every process, each field with one meaning, named
+/// as in the process's exit summary; fields of another role stay at zero (NaN for the floats).
+/// Percentiles are since the process started.
 #[derive(Debug, Clone, Copy, Default, Zeroable, ZeroCopySend)]
-#[type_name("mtanet::ProcessStats/v1")]
+#[type_name("mtanet::ProcessStats/v2")]
 #[repr(C)]
 pub struct ProcessStats {
     /// `CLOCK_MONOTONIC` ns when published.
@@ -28,14 +29,32 @@ pub struct ProcessStats {
     pub p99_us: f32,
     pub p999_us: f32,
     pub max_us: f32,
-    /// Simulator: laps; predictor: the [`crate::CommandSource`] of its last command; trainer:
-    /// replay sequences held.
-    pub laps_or_driver_or_fill: u32,
-    /// Simulator: missed commands; predictor: fallbacks; trainer: replay chunks lost.
-    pub faults: u32,
-    /// Predictor: live model error / copy-last; trainer: last loss; simulator: NaN.
-    pub quality: f32,
-    pub _pad: u32,
+    /// Simulator: laps completed over all episodes.
+    pub laps: u32,
+    /// Simulator: steps whose command did not come in time.
+    pub missed_commands: u32,
+    /// Predictor: the [`crate::CommandSource`] of its last command.
+    pub driver: u32,
+    /// Predictor: times the fallback took over.
+    pub fallbacks: u32,
+    /// Predictor: the live model's next-frame error over copy-last (NaN: none yet).
+    pub model_over_copy_last: f32,
+    /// Predictor: weights put in use, refused (damaged or not fitting), and held back (their
+    /// probe failed while the model in hand drove).
+    pub weights_installed: u32,
+    pub weights_rejected: u32,
+    pub weights_held_back: u32,
+    /// Predictor: the version of the weights in use (0: none).
+    pub model_version: u64,
+    /// Trainer: sequences in the replay buffer, and replay chunks lost.
+    pub replay_sequences: u32,
+    pub chunks_lost: u32,
+    /// Trainer: the last update's loss (NaN: none yet).
+    pub loss: f32,
+    /// Trainer: weights this process published.
+    pub weights_published: u32,
+    /// Trainer: the update count of the checkpoint it resumed from (0: a fresh start).
+    pub resumed_from_update: u64,
 }
 
 impl ProcessStats {

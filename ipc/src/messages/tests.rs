@@ -17,7 +17,10 @@ fn sizes_and_alignment_are_pinned() {
     );
     assert_eq!(size_of::<WeightsHeader>(), 8 * 4 + 8 + 16);
     assert_eq!(size_of::<TrainerStatus>(), 8 * 5 + 8);
-    assert_eq!(size_of::<ProcessStats>(), 8 + 16 + 8 + 8 + 8 + 8 + 16 + 16);
+    assert_eq!(
+        size_of::<ProcessStats>(),
+        8 + 16 + 8 + 8 + 8 + 8 + 16 + 32 + 8 + 16 + 8
+    );
     for a in [
         align_of::<Observation>(),
         align_of::<Command>(),

@@ -288,7 +288,7 @@ mod tests {
         s.count = 1000;
         s.rate_hz = 50.0;
         s.p99_us = 812.0;
-        s.laps_or_driver_or_fill = 7;
+        s.laps = 7;
         s.stamp_ns = mtanet_ipc::stamp::monotonic_ns();
         let mut processes = BTreeMap::new();
         processes.insert("simulator".to_string(), crate::status::view(&s));

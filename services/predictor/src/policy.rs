@@ -3,23 +3,14 @@
 //! against the wire contract before they replace anything; a bad blob leaves the car as it was.
 
 use mtanet_control::{
-    Agent, AgentStats, Blind, Decision, Driver, FrameShape, NoPlans, Planner, PlanningSummary,
-    Threaded, Tick,
+    Agent, AgentStats, Blind, Decision, FrameShape, NoPlans, Planner, PlanningSummary, Threaded,
+    Tick,
 };
-use mtanet_ipc::{CONTROL_PERIOD_S, CommandSource, Observation};
+use mtanet_ipc::{CONTROL_PERIOD_S, Observation};
 use mtanet_models::live::{Imagined, LiveModel};
 
 use crate::config::PredictorConfig;
 use crate::loader::{Prepared, prepare};
-
-pub fn source_of(driver: Driver) -> CommandSource {
-    match driver {
-        Driver::Reactive => CommandSource::Reactive,
-        Driver::Exploration => CommandSource::Exploration,
-        Driver::ActiveInference => CommandSource::ActiveInference,
-        Driver::Fallback => CommandSource::Fallback,
-    }
-}
 
 pub struct Policy {
     agent: Agent,
@@ -205,6 +196,7 @@ pub fn background_priority(nice: i32, what: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mtanet_control::Driver;
     use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 
     pub(crate) fn small_checkpoint(seed: u64, cfg: ModelConfig) -> Vec<u8> {

@@ -9,14 +9,14 @@ use mtanet_ipc::latency::LatencyStats;
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::stats::StatsPublisher;
+use mtanet_ipc::stats::{StatsPublisher, saturate};
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsReceiver;
 use mtanet_ipc::{Command, Observation, names, stamp};
 
 use crate::config::PredictorConfig;
 use crate::loader::Loader;
-use crate::policy::{Install, Policy, source_of};
+use crate::policy::{Install, Policy};
 
 /// What the predictor reports at exit (a plain data type of `mtanet-summaries`).
 pub use mtanet_summaries::predictor::Summary;
@@ -110,9 +110,13 @@ pub fn run_with(
             summary.commands_sent,
             || stats.compute.summary(),
             |s| {
-                s.laps_or_driver_or_fill = stats.source;
-                s.faults = policy.stats().fallbacks.min(u32::MAX as u64) as u32;
-                s.quality = policy
+                s.driver = stats.source;
+                s.fallbacks = saturate(policy.stats().fallbacks);
+                s.weights_installed = saturate(summary.weights_installed);
+                s.weights_rejected = saturate(summary.weights_rejected);
+                s.weights_held_back = saturate(summary.weights_held_back);
+                s.model_version = summary.model_version;
+                s.model_over_copy_last = policy
                     .model
                     .as_ref()
                     .and_then(|m| m.error_ratio())
@@ -205,14 +209,14 @@ fn answer_observations(
             c.obs_stamp_ns = obs.stamp_ns;
             c.model_version = summary.model_version;
             c.wheel_velocity = decision.wheels;
-            c.source = source_of(decision.driver) as u32;
+            c.source = decision.driver.source() as u32;
             c.compute_ns = compute_ns.min(u64::from(u32::MAX)) as u32;
             c.model_error_ratio = ratio.map_or(f32::NAN, |r| r as f32);
             c.probe = probe.map_or(f32::NAN, |p| p as f32);
             c.stamp_ns = stamp::monotonic_ns();
         })?;
         summary.commands_sent += 1;
-        stats.source = source_of(decision.driver) as u32;
+        stats.source = decision.driver.source() as u32;
         stats.compute.record_ns(compute_ns);
         stats.age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
         if let Some((_, plan)) = &decision.plan {
@@ -261,6 +265,7 @@ fn install_weights(
                 );
             }
             Ok((Install::Installed, decode_ms, _)) => {
+                summary.weights_installed += 1;
                 summary.model_version = version;
                 let install_ms = t0.elapsed().as_secs_f64() * 1e3;
                 let probe = policy.model.as_ref().and_then(|m| m.probe);

@@ -1,7 +1,7 @@
 //! `[simulator]` section of the stack's config file (with `[simulator.scene]` and
 //! `[simulator.teacher]` for the world and the teacher driver).
 
-use mtanet_scenes::{SceneConfig, TeacherConfig};
+use mtanet_scenes::{ResetRule, SceneConfig, TeacherConfig};
 use serde::{Deserialize, Serialize};
 
 /// How simulated time relates to wall-clock time.
@@ -91,6 +91,17 @@ impl Default for SimulatorConfig {
             trace_every_steps: 5,
             scene: SceneConfig::default(),
             teacher: TeacherConfig::default(),
+        }
+    }
+}
+
+impl SimulatorConfig {
+    /// When the car is put back at the start.
+    pub fn reset_rule(&self) -> ResetRule {
+        ResetRule {
+            after_lost_s: self.reset_after_lost_s,
+            lost_lateral_m: self.lost_lateral_m,
+            reverse_m: self.reverse_reset_m,
         }
     }
 }

@@ -2,10 +2,10 @@
 //! predictor and trainer over iceoryx2 (`service`), or runs alone with the teacher driving for
 //! tests and data collection (`standalone`).
 
+pub mod answer;
 pub mod chunk;
+pub mod clock;
 pub mod config;
-pub mod control_stats;
-pub mod drive_stats;
 pub mod pacing;
 pub mod recorder;
 pub mod service;

@@ -10,15 +10,18 @@ use mtanet_ipc::incident::{self, IncidentKind};
 use mtanet_ipc::latency::LatencyStats;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::stats::StatsPublisher;
+use mtanet_ipc::stats::{StatsPublisher, saturate};
 use mtanet_ipc::systemd::Watchdog;
-use mtanet_ipc::{Command, CommandSource, Observation, ReplayChunk, TrainerStatus, names, stamp};
-use mtanet_scenes::{Drive, ResetRule, Sensors, Teacher, Verdict, World};
+use mtanet_ipc::wait::{self, Waited, Wake};
+use mtanet_ipc::{
+    Command, CommandSource, Observation, ProcessStats, ReplayChunk, TrainerStatus, names, stamp,
+};
+use mtanet_scenes::{Drive, Frame, Score, Teacher, Verdict, World};
 
+use crate::answer::Answers;
 use crate::chunk::ChunkBuilder;
-use crate::config::{MissPolicy, Mode, SimulatorConfig};
-use crate::control_stats::ControlStats;
-use crate::drive_stats::DriveStats;
+use crate::clock::Clock;
+use crate::config::{Mode, SimulatorConfig};
 use crate::pacing::Pace;
 pub use crate::summary::Summary;
 use crate::trace::Trace;
@@ -44,10 +47,9 @@ impl Ports {
     }
 }
 
-/// Consecutive missed commands after which the simulator checks for a dead predictor.
-const MISSES_BEFORE_CLEANUP: u32 = 3;
-
-/// Runs until `cfg.max_steps` or a signal; `trace` gets the car's path with who drove.
+/// Runs until `cfg.max_steps` or a signal; `trace` gets the car's path with who drove. Each
+/// step: wait for its turn (the trainer's pace, the 50 Hz tick), sense, publish, take the answer,
+/// step the world core.
 pub fn run(
     node: &Node<ipc::Service>,
     ports: &Ports,
@@ -58,146 +60,49 @@ pub fn run(
     mut trace: Option<&mut Trace>,
 ) -> anyhow::Result<Summary> {
     let period = world.config().control_period_s;
+    let lockstep = cfg.mode == Mode::Lockstep;
     let mut watchdog = Watchdog::from_env();
-    if cfg.mode == Mode::Lockstep {
-        wait_for_peers(ports, cfg, shutdown, &mut watchdog);
+    if lockstep {
+        wait_for_peers(ports, cfg, shutdown, &mut watchdog)?;
     }
     let mut summary = Summary::default();
-    let mut drive = DriveStats::default();
-    let mut control = ControlStats::default();
-    let mut pace = Pace::new(cfg.pace_updates_per_1000_steps, cfg.mode == Mode::Lockstep);
+    let mut pace = Pace::new(cfg.pace_updates_per_1000_steps, lockstep);
+    let mut clock = Clock::new(period, !lockstep);
+    let mut answers = Answers::new(cfg, period);
+    let mut step_time = LatencyStats::new();
+    let mut chunk = ChunkBuilder::default();
     // Who decided the command in force (it led to the next frame).
     let mut applied_source = CommandSource::Teacher;
-    let (mut round_trip, mut step_time) = (LatencyStats::new(), LatencyStats::new());
-    // Real time: how late each step finished against its 50 Hz tick (0 when on time), and how
-    // late it started; command publish -> receive.
-    let mut tick_late = LatencyStats::new();
-    let mut tick_jitter = LatencyStats::new();
-    let mut cmd_to_sim = LatencyStats::new();
-    let mut chunk = ChunkBuilder::default();
-    let mut last_cmd = [0.0f32; 2];
-    let mut consecutive_misses = 0u32;
-    // Realtime still waits for the answer to the frame just sent, but never past half a period:
-    // the 50 Hz tick must hold even when the predictor is slow.
-    let command_wait = match cfg.mode {
-        Mode::Lockstep => Duration::from_millis(cfg.command_timeout_ms),
-        Mode::Realtime => {
-            Duration::from_millis(cfg.command_timeout_ms).min(Duration::from_secs_f64(period / 2.0))
-        }
-    };
-    let start = Instant::now();
-    let mut last_log = start;
-    let mut car = Drive::new(
-        world,
-        ResetRule {
-            after_lost_s: cfg.reset_after_lost_s,
-            lost_lateral_m: cfg.lost_lateral_m,
-            reverse_m: cfg.reverse_reset_m,
-        },
-    );
+    let mut last_log = Instant::now();
+    let mut car = Drive::new(world, cfg.reset_rule());
     while !shutdown.requested() && (cfg.max_steps == 0 || car.steps() < cfg.max_steps) {
         let step = car.steps();
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
-        let t0 = Instant::now();
+        let t0 = clock.begin(step);
         let t0_ns = stamp::monotonic_ns();
-        if cfg.mode == Mode::Realtime {
-            let due = start + Duration::from_secs_f64(step as f64 * period);
-            tick_jitter.record_ns(t0.saturating_duration_since(due).as_nanos() as u64);
-        }
         let frame = car.sense();
-        let (sensors, episode, applied) = (frame.sensors, frame.episode, frame.applied);
-        drive.record(&sensors.truth);
-        let lockstep = cfg.mode == Mode::Lockstep;
-        let obs = ObsMeta {
-            step,
-            episode,
-            time_s: frame.time_s,
-            applied,
-            lockstep,
-        };
-        let obs_stamp = publish_observation(ports, &obs, &sensors)?;
-        let predictor = ports.commands.publishers() > 0;
-        // Without a predictor only look (no wait): one that answered and left still counts.
-        let answer = await_command(
+        let obs_stamp = publish_observation(ports, &frame, lockstep)?;
+        let (cmd, source) = answers.take(
+            node,
             ports,
-            step,
-            if predictor {
-                command_wait
-            } else {
-                Duration::ZERO
-            },
+            &frame,
+            obs_stamp,
+            t0_ns,
+            teacher,
+            &mut summary,
             shutdown,
-            &mut summary.stale_commands,
         )?;
-        let (cmd, source) = match answer {
-            Some((c, received_ns)) => {
-                consecutive_misses = 0;
-                if c.step == step {
-                    summary.commands_received += 1;
-                    round_trip.record_ns(stamp::elapsed_ns(obs_stamp));
-                    cmd_to_sim.record_ns(received_ns.saturating_sub(c.stamp_ns));
-                }
-                let source = CommandSource::from_u32(c.source).unwrap_or(CommandSource::Reactive);
-                (c.wheel_velocity, source)
-            }
-            None if !predictor => {
-                summary.teacher_steps += 1;
-                (teacher.act(&sensors), CommandSource::Teacher)
-            }
-            None => {
-                summary.missed_commands += 1;
-                if !lockstep {
-                    incident::record(
-                        &mut summary.incidents,
-                        step,
-                        IncidentKind::MissedCommand,
-                        t0_ns,
-                    );
-                }
-                consecutive_misses += 1;
-                if consecutive_misses == 1 {
-                    // Once per run of misses: a frozen peer must not flood the log.
-                    tracing::warn!(step, wait_ms = command_wait.as_secs_f64() * 1e3, policy = ?cfg.on_missed_command, "no command in time for this step");
-                }
-                if consecutive_misses >= MISSES_BEFORE_CLEANUP {
-                    // A predictor killed with SIGKILL still counts as connected until its node is
-                    // cleaned; without this every later step would wait the full timeout.
-                    consecutive_misses = 0;
-                    let cleaned = node.try_cleanup_dead_nodes().cleanups;
-                    if cleaned > 0 {
-                        tracing::warn!(
-                            cleaned,
-                            "predictor stopped answering: removed dead nodes; the teacher drives until one connects"
-                        );
-                    }
-                    summary.dead_nodes_cleaned += cleaned;
-                }
-                let cmd = match cfg.on_missed_command {
-                    MissPolicy::Teacher => teacher.act(&sensors),
-                    MissPolicy::Stop => [0.0, 0.0],
-                    MissPolicy::Hold => last_cmd,
-                };
-                (cmd, CommandSource::Teacher)
-            }
-        };
-        control.record(source, sensors.truth.lateral_m, drive.laps());
         if let Some(t) = trace.as_deref_mut() {
-            t.record(step, episode, &sensors.truth, source)?;
+            t.record(step, frame.episode, &frame.sensors.truth, source)?;
         }
         if cfg.replay {
             chunk.pace = pace.rate();
-            chunk.push(
-                &ports.replay,
-                step,
-                episode,
-                &sensors,
-                applied,
-                applied_source,
-            )?;
+            let (s, e, a) = (&frame.sensors, frame.episode, frame.applied);
+            chunk.push(&ports.replay, step, e, s, a, applied_source)?;
         }
-        let stepped = car.step(cmd);
+        let stepped = car.step(cmd, source);
         if stepped.accepted {
-            last_cmd = cmd;
+            answers.last = cmd;
             applied_source = source;
         } else {
             tracing::warn!(
@@ -207,25 +112,18 @@ pub fn run(
             );
         }
         if let Some(verdict) = stepped.reset {
-            let why = match verdict {
-                Verdict::Lost => "car lost the line",
-                _ => "car drives the wrong way round",
-            };
             tracing::warn!(
                 step,
-                episode,
-                lateral_m = sensors.truth.lateral_m,
-                "{why}: back to the start, new episode"
+                episode = frame.episode,
+                lateral_m = frame.sensors.truth.lateral_m,
+                "{}: back to the start, new episode",
+                verdict_words(verdict)
             );
             teacher.reset();
-            drive.end_episode();
-            control.end_episode();
             applied_source = CommandSource::Teacher; // the reset's zero command
             chunk.discard(); // a training sequence never spans a reset
             summary.resets += 1;
-            if verdict == Verdict::WrongWay {
-                summary.wrong_way_resets += 1;
-            }
+            summary.wrong_way_resets += u64::from(verdict == Verdict::WrongWay);
         }
         // The step's own work (in real time the wait for the next tick comes after).
         let work = t0.elapsed();
@@ -235,119 +133,144 @@ pub fn run(
             incident::record(&mut summary.incidents, step, IncidentKind::Overrun, t0_ns);
         }
         let done = car.steps();
-        if cfg.mode == Mode::Realtime {
-            let next = start + Duration::from_secs_f64(done as f64 * period);
-            let late = Instant::now().saturating_duration_since(next);
-            tick_late.record_ns(late.as_nanos() as u64);
-            std::thread::sleep(next.saturating_duration_since(Instant::now()));
-        }
+        clock.wait_for_tick(done);
         watchdog.pet();
-        ports.stats.borrow_mut().tick(
-            done,
-            || step_time.summary(),
-            |s| {
-                s.laps_or_driver_or_fill = drive.laps();
-                s.faults = summary.missed_commands.min(u32::MAX as u64) as u32;
-            },
-        )?;
+        let score = car.score();
+        let fill = |s: &mut ProcessStats| fill_stats(s, score, &summary);
+        ports
+            .stats
+            .borrow_mut()
+            .tick(done, || step_time.summary(), fill)?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
             tracing::info!(
                 step = done,
-                laps = drive.laps(),
-                laps_ai = control.laps_under_active_inference(),
+                laps = score.laps(),
+                laps_ai = score.laps_under_active_inference(),
                 driver = applied_source.name(),
                 received = summary.commands_received,
                 missed = summary.missed_commands,
-                round_trip = %round_trip.summary(),
+                round_trip = %answers.round_trip.summary(),
                 "running"
             );
         }
     }
-    let step = car.steps();
-    summary.steps = step;
+    let steps = car.steps();
+    let score = car.score().clone();
+    summary.steps = steps;
     summary.replay_chunks_sent = chunk.sent;
-    summary.rejected_commands = car.world().rejected_commands();
-    summary.round_trip = round_trip.summary();
+    summary.rejected_commands = world.rejected_commands();
+    summary.round_trip = answers.round_trip.summary();
+    summary.round_trip_hist = answers.round_trip.histogram();
+    summary.cmd_to_sim = answers.cmd_to_sim.summary();
+    summary.cmd_to_sim_hist = answers.cmd_to_sim.histogram();
     summary.step_time = step_time.summary();
-    summary.tick_late = tick_late.summary();
     summary.step_time_hist = step_time.histogram();
-    summary.round_trip_hist = round_trip.histogram();
-    summary.cmd_to_sim = cmd_to_sim.summary();
-    summary.cmd_to_sim_hist = cmd_to_sim.histogram();
-    summary.tick_jitter = tick_jitter.summary();
-    summary.laps = drive.laps();
-    summary.lateral_error_m = drive.lateral();
-    summary.control = control.summary();
-    summary.pace = pace.summary(step);
-    summary.sim_seconds = step as f64 * period; // world time restarts with each episode
-    summary.wall_seconds = start.elapsed().as_secs_f64();
+    summary.tick_late = clock.late.summary();
+    summary.tick_jitter = clock.jitter.summary();
+    summary.laps = score.laps();
+    summary.lateral_error_m = score.lateral();
+    summary.control = score.control();
+    summary.pace = pace.summary(steps);
+    summary.sim_seconds = steps as f64 * period; // world time restarts with each episode
+    summary.wall_seconds = clock.elapsed().as_secs_f64();
+    // The run's last figures, before lingering: what a watcher waits for.
+    let fill = |s: &mut ProcessStats| fill_stats(s, &score, &summary);
+    ports
+        .stats
+        .borrow_mut()
+        .publish(steps, || step_time.summary(), fill)?;
     if cfg.replay {
-        linger_for_replay(ports, cfg, &mut watchdog);
+        linger_for_replay(ports, cfg, chunk.sent, shutdown, &mut watchdog)?;
     }
     Ok(summary)
 }
 
+fn fill_stats(s: &mut ProcessStats, score: &Score, summary: &Summary) {
+    s.laps = score.laps();
+    s.missed_commands = saturate(summary.missed_commands);
+}
+
+fn verdict_words(v: Verdict) -> &'static str {
+    match v {
+        Verdict::Lost => "car lost the line",
+        _ => "car drives the wrong way round",
+    }
+}
+
 /// Lockstep runs are only reproducible if every step is answered, so wait (bounded) for the
-/// predictor, and for the trainer when one is expected, before the first step.
+/// predictor, and for the trainer when one is expected, before the first step. A connection
+/// raises no event: the wait looks every 10 ms.
 fn wait_for_peers(
     ports: &Ports,
     cfg: &SimulatorConfig,
     shutdown: &Shutdown,
     watchdog: &mut Watchdog,
-) {
-    let deadline = Instant::now() + Duration::from_secs_f64(cfg.wait_for_peers_s.max(0.0));
+) -> anyhow::Result<()> {
     let ready = || {
         ports.commands.publishers() > 0 && (!cfg.expect_trainer || ports.replay.subscribers() > 0)
     };
-    let mut told = false;
-    while !ready() && !shutdown.requested() && Instant::now() < deadline {
-        if !told {
-            tracing::info!(
-                expect_trainer = cfg.expect_trainer,
-                "waiting for peers to connect"
-            );
-            told = true;
-        }
-        watchdog.pet();
-        std::thread::sleep(Duration::from_millis(10));
+    if ready() {
+        return Ok(());
     }
-    if !ready() {
+    tracing::info!(
+        expect_trainer = cfg.expect_trainer,
+        "waiting for peers to connect"
+    );
+    let wake = Wake {
+        every: Duration::from_millis(10),
+        deadline: Instant::now() + Duration::from_secs_f64(cfg.wait_for_peers_s.max(0.0)),
+    };
+    let pet = || {
+        watchdog.pet();
+        Ok(())
+    };
+    if wait::until(&wake, shutdown, pet, ready)? == Waited::Deadline {
         tracing::warn!(
             "peers missing after {:.1} s: starting anyway (the teacher drives without a predictor)",
             cfg.wait_for_peers_s
         );
     }
+    Ok(())
 }
 
-/// Keeps the replay publisher (this process) alive for `replay_linger_s` while a trainer
-/// subscribes, so one that has not connected yet still can and takes the chunks.
-fn linger_for_replay(ports: &Ports, cfg: &SimulatorConfig, watchdog: &mut Watchdog) {
+/// Keeps the replay publisher (this process) alive, up to `replay_linger_s`, until a subscribed
+/// trainer says it has taken (or lost) every chunk sent: one that has not connected yet still
+/// can, and takes the last chunks.
+fn linger_for_replay(
+    ports: &Ports,
+    cfg: &SimulatorConfig,
+    sent: u64,
+    shutdown: &Shutdown,
+    watchdog: &mut Watchdog,
+) -> anyhow::Result<()> {
     if ports.replay.subscribers() == 0 || cfg.replay_linger_s <= 0.0 {
-        return;
+        return Ok(());
     }
     tracing::info!(
         seconds = cfg.replay_linger_s,
+        sent,
         "lingering so the trainer can take the last replay chunks"
     );
     let deadline = Instant::now() + Duration::from_secs_f64(cfg.replay_linger_s);
-    while Instant::now() < deadline {
+    loop {
         watchdog.pet();
-        std::thread::sleep(Duration::from_millis(10));
+        let taken = ports
+            .trainer_status
+            .latest()?
+            .is_some_and(|s| s.chunks_received + s.chunks_lost >= sent);
+        let left = deadline.saturating_duration_since(Instant::now());
+        if taken || left.is_zero() || shutdown.requested() {
+            return Ok(());
+        }
+        // On the trainer's status event: no WaitSet (and no descriptor) just for the exit.
+        ports.trainer_status.wait(left.min(wait::SIGNAL_LATENCY))?;
     }
 }
 
-/// What an observation says besides the sensors.
-struct ObsMeta {
-    step: u64,
-    episode: u32,
-    time_s: f64,
-    /// The command applied during the step that led to this frame.
-    applied: [f32; 2],
-    lockstep: bool,
-}
-
-fn publish_observation(ports: &Ports, m: &ObsMeta, s: &Sensors) -> anyhow::Result<u64> {
+/// Publishes what the car senses; returns the stamp the round trip starts from.
+fn publish_observation(ports: &Ports, m: &Frame, lockstep: bool) -> anyhow::Result<u64> {
+    let s = &m.sensors;
     let mut stamp_ns = 0;
     ports
         .observations
@@ -359,7 +282,7 @@ fn publish_observation(ports: &Ports, m: &ObsMeta, s: &Sensors) -> anyhow::Resul
             o.command = m.applied;
             o.line_sensors = s.line.map(u8::from);
             o.episode = m.episode as u8; // wraps: receivers only look for a change
-            o.lockstep = u8::from(m.lockstep);
+            o.lockstep = u8::from(lockstep);
             let t = &s.truth;
             o.truth.x_m = t.x;
             o.truth.y_m = t.y;
@@ -374,35 +297,4 @@ fn publish_observation(ports: &Ports, m: &ObsMeta, s: &Sensors) -> anyhow::Resul
         })
         .context("publishing an observation")?;
     Ok(stamp_ns)
-}
-
-/// Waits up to `timeout` for the command answering `step` (with the time it was taken in);
-/// drops answers to earlier steps.
-fn await_command(
-    ports: &Ports,
-    step: u64,
-    timeout: Duration,
-    shutdown: &Shutdown,
-    stale: &mut u64,
-) -> anyhow::Result<Option<(Command, u64)>> {
-    let deadline = Instant::now() + timeout;
-    loop {
-        let mut found = None;
-        ports.commands.for_each(|c| {
-            if c.step == step {
-                found = Some((*c, stamp::monotonic_ns()));
-            } else {
-                *stale += 1;
-            }
-        })?;
-        if found.is_some() {
-            return Ok(found);
-        }
-        let left = deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() || shutdown.requested() {
-            return Ok(None);
-        }
-        // Short slices so a signal ends the wait quickly even if no command ever comes.
-        ports.commands.wait(left.min(Duration::from_millis(50)))?;
-    }
 }

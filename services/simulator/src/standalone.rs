@@ -8,10 +8,9 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_scenes::{Drive, ResetRule, Teacher, World};
+use mtanet_scenes::{CommandSource, Drive, LateralError, ResetRule, Teacher, World};
 use serde::{Deserialize, Serialize};
 
-use crate::drive_stats::{DriveStats, LateralError};
 use crate::recorder::Recorder;
 
 /// What `--report FILE.json` holds.
@@ -54,7 +53,6 @@ pub fn run(
     let period = world.config().control_period_s;
     let steps = (run.sim_seconds / period).round() as u64;
     let mut recorder = run.record.as_ref().map(|_| Recorder::new(run.seq_len));
-    let mut stats = DriveStats::default();
     let mut step_time = LatencyStats::new();
     let bar = ProgressBar::new(steps).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} eta {eta}")
@@ -75,12 +73,11 @@ pub fn run(
         }
         let t0 = Instant::now();
         let f = car.sense();
-        stats.record(&f.sensors.truth);
         if let Some(rec) = recorder.as_mut() {
             // The command that led to this frame, as in the replay chunks.
             rec.push(&f.sensors.image, f.applied);
         }
-        car.step(teacher.act(&f.sensors));
+        car.step(teacher.act(&f.sensors), CommandSource::Teacher);
         step_time.record_ns(t0.elapsed().as_nanos() as u64);
         done += 1;
         if done % 500 == 0 {
@@ -89,6 +86,7 @@ pub fn run(
     }
     bar.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
+    let score = car.score().clone();
     if let (Some(rec), Some(path)) = (recorder.as_ref(), run.record.as_ref()) {
         rec.write(path)
             .with_context(|| format!("recording {}", path.display()))?;
@@ -99,9 +97,9 @@ pub fn run(
         seed: run.seed,
         sim_seconds: done as f64 * period,
         steps: done,
-        laps: stats.laps(),
-        lateral_error_m: stats.lateral(),
-        on_line_fraction: stats.on_line_fraction(),
+        laps: score.laps(),
+        lateral_error_m: score.lateral(),
+        on_line_fraction: score.on_line_fraction(),
         real_time_factor: done as f64 * period / wall.max(1e-9),
         wall_seconds: wall,
         rejected_commands: world.rejected_commands(),

@@ -91,6 +91,8 @@ pub struct Learner {
     last_loss: Option<f64>,
     /// Training step of the checkpoint on disk, so a stop saves only what is new.
     saved_step: u64,
+    /// Training step of the checkpoint resumed from (0: a fresh start).
+    resumed_from: u64,
     pub refused: u64,
 }
 
@@ -124,6 +126,7 @@ impl Learner {
             version: 0,
             last_loss: None,
             saved_step,
+            resumed_from: saved_step,
             refused: 0,
         })
     }
@@ -139,6 +142,11 @@ impl Learner {
 
     pub fn last_loss(&self) -> Option<f64> {
         self.last_loss
+    }
+
+    /// Training step of the checkpoint resumed from (0: a fresh start).
+    pub fn resumed_from(&self) -> u64 {
+        self.resumed_from
     }
 
     pub fn published(&self) -> u64 {

@@ -8,7 +8,7 @@ use mtanet_ipc::latency::LatencyStats;
 use mtanet_ipc::node::create_waitset;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_ipc::stats::StatsPublisher;
+use mtanet_ipc::stats::{StatsPublisher, saturate};
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsSender;
 use mtanet_ipc::{ReplayChunk, TrainerStatus, names, stamp};
@@ -135,15 +135,19 @@ pub fn run_with(
         } else {
             Duration::from_millis(100)
         };
+        let mut took = 0;
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
             if id.has_event_from(&replay_guard) {
                 let res = ports
                     .replay
                     .drain_events()
                     .and_then(|_| ports.replay.for_each(|c| buffer.push(c)));
-                if let Err(e) = res {
-                    failure = Some(e);
-                    return CallbackProgression::Stop;
+                match res {
+                    Ok(n) => took += n,
+                    Err(e) => {
+                        failure = Some(e);
+                        return CallbackProgression::Stop;
+                    }
                 }
             }
             CallbackProgression::Continue
@@ -176,8 +180,10 @@ pub fn run_with(
                 }
             }
             publish_status(ports, &learner, &buffer, session, true)?;
-        } else if ready {
-            publish_status(ports, &learner, &buffer, session, true)?;
+        } else if ready || took > 0 {
+            // Also while filling the buffer: a simulator lingering at exit waits for its last
+            // chunks to be taken.
+            publish_status(ports, &learner, &buffer, session, ready)?;
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
@@ -185,9 +191,11 @@ pub fn run_with(
             learner.updates(),
             || update_time.summary(),
             |s| {
-                s.laps_or_driver_or_fill = buffer.len() as u32;
-                s.faults = buffer.lost().min(u32::MAX as u64) as u32;
-                s.quality = learner.last_loss().map_or(f32::NAN, |l| l as f32);
+                s.replay_sequences = saturate(buffer.len() as u64);
+                s.chunks_lost = saturate(buffer.lost());
+                s.loss = learner.last_loss().map_or(f32::NAN, |l| l as f32);
+                s.weights_published = saturate(learner.published());
+                s.resumed_from_update = learner.resumed_from();
             },
         )?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
@@ -223,6 +231,7 @@ pub fn run_with(
         updates_refused: learner.refused,
         last_loss: learner.last_loss(),
         weights_published: learner.published(),
+        resumed_from_update: learner.resumed_from(),
         update_time: update_time.summary(),
     })
 }
