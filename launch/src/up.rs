@@ -26,7 +26,7 @@ pub struct UpArgs {
     /// Stack config (TOML; default ops/mtanet.toml when it exists, else built-in defaults).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Track CSV (default: the shipped oval).
+    /// Track CSV, or `generated:N` for a generated track (default: the shipped oval).
     #[arg(long)]
     track: Option<PathBuf>,
     /// Stop after this much simulated time (0: until Ctrl-C).

@@ -22,7 +22,8 @@ pub struct ProbeArgs {
     /// Checkpoint (.safetensors) from the trainer or `mta train`.
     #[arg(long)]
     checkpoint: PathBuf,
-    /// Track CSV (default: the config's, else the shipped oval).
+    /// Track CSV, or `generated:N` for a generated track (default: the config's, else the
+    /// shipped oval).
     #[arg(long)]
     track: Option<PathBuf>,
     /// Stack config: [predictor.active_inference] gives the cost, [trainer.probe] the probe.

@@ -1,7 +1,9 @@
 //! The offline tools over models, tracks and checkpoints, with no running stack: `mta train`,
-//! `mta synth`, `mta figures`, and `mta probe` / `mta drive` (in-process active inference).
+//! `mta synth`, `mta figures`, `mta probe` / `mta drive` (in-process active inference), and
+//! `mta track` (a generated track as a file).
 
 pub mod evaluate;
 pub mod figures;
 pub mod synth;
+pub mod track;
 pub mod train;

@@ -11,7 +11,7 @@ use crate::{CONTROL_PERIOD_S, PHYSICS_TIMESTEP_S};
 /// Why a [`crate::World`] could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    /// The track file is missing or invalid.
+    /// The track file is missing or invalid (or `generated:N` is malformed).
     #[error(transparent)]
     Track(#[from] TrackError),
     /// A configuration value is out of range; `field` is the key as written in the config.
@@ -33,7 +33,7 @@ pub enum SceneError {
 #[serde(default, deny_unknown_fields)]
 pub struct SceneConfig {
     /// Track CSV (default: this crate's `tracks/oval.csv`); a relative path is relative to the
-    /// working directory.
+    /// working directory. `generated:N` is the generator's track of seed N instead of a file.
     pub track: PathBuf,
     /// MuJoCo time step, seconds.
     pub physics_timestep_s: f64,

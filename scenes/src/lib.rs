@@ -3,7 +3,8 @@
 //! line on a light floor. The middle camera gives an 8x12 grayscale image every 0.02 s, recorded
 //! with the two wheel velocities.
 //!
-//! - [`Track`]: a closed polyline loaded from `tracks/*.csv` and validated.
+//! - [`Track`]: a closed polyline loaded from `tracks/*.csv` (or generated: `generated:N`) and
+//!   validated.
 //! - [`World`]: MJCF generated from the track, compiled and stepped with MuJoCo 3.17.
 //! - [`Sensors`]: camera image, line sensors, wheel velocities, ground truth for evaluation.
 //! - [`Drive`]: one car stepped round its track, lost cars put back as new episodes (no IPC),

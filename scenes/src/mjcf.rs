@@ -204,11 +204,15 @@ mod tests {
     }
 
     /// The boxes cover the line (no gaps at bends) and do not stick out of it (beyond the tiny
-    /// miter tip), checked on every shipped track by sampling across the line.
+    /// miter tip), checked on every shipped track and a few generated ones by sampling across
+    /// the line.
     #[test]
     fn boxes_cover_the_line_without_gaps() {
-        for name in ["oval", "bends", "s_loop", "square"] {
-            let track = Track::load(&crate::shipped_track(name)).unwrap();
+        let shipped = ["oval", "bends", "s_loop", "square"].map(crate::shipped_track);
+        let generated = [0, 1, 2].map(|seed| format!("generated:{seed}").into());
+        for path in shipped.into_iter().chain(generated) {
+            let track = Track::load(&path).unwrap();
+            let name = path.display();
             let boxes = line_boxes(&track);
             assert!(boxes.len() < track.segment_count() + 1, "{name}");
             let hw = track.line_width_m() / 2.0;

@@ -94,3 +94,15 @@ fn broken_mjcf_is_detected() {
     });
     assert!(r.is_err(), "a broken MJCF passed the mujoco-compile check");
 }
+
+#[test]
+fn generated_tracks_compile_with_mujoco_2_2() {
+    // Tracks nobody drew by hand: their many short bend segments must load in 2.2.2 too.
+    let dir = tempfile::tempdir().expect("temp dir");
+    for seed in [0, 7, 42] {
+        let name = format!("generated:{seed}");
+        let world = World::new(&SceneConfig::default().with_track(&name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        compile_with_mujoco_2_2(dir.path(), &format!("generated_{seed}"), world.mjcf());
+    }
+}

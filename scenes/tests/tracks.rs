@@ -61,6 +61,23 @@ fn every_shipped_track_loads_and_the_car_starts_on_the_line() {
 }
 
 #[test]
+fn the_car_starts_on_the_line_of_generated_tracks() {
+    for seed in 0..10 {
+        let name = format!("generated:{seed}");
+        let mut world = World::new(&SceneConfig::default().with_track(&name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(world.track().path(), Path::new(&name));
+        let s = world.sense();
+        assert!(
+            s.truth.on_line && s.truth.lateral_m.abs() < 1e-3,
+            "{name}: {:?}",
+            s.truth
+        );
+        assert_eq!(s.line, [false, true, false], "{name}: sensors {:?}", s.line);
+    }
+}
+
+#[test]
 fn bends_are_sampled_densely() {
     for path in shipped() {
         let t = Track::load(&path).unwrap();

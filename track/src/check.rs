@@ -119,7 +119,7 @@ fn turn_at(points: &[[f64; 2]], i: usize) -> f64 {
 /// The vertex starting the sharpest window of line, and the radius there: the turn accumulated
 /// over the vertices within `BEND_WINDOW_M` ahead, divided by the length of line that turn is
 /// spread over (capped at half a window beyond the first and last vertex).
-fn tightest_bend(points: &[[f64; 2]], cum: &[f64]) -> Option<(usize, f64)> {
+pub(super) fn tightest_bend(points: &[[f64; 2]], cum: &[f64]) -> Option<(usize, f64)> {
     let n = points.len();
     let seg_len = |k: usize| cum[k % n + 1] - cum[k % n];
     let turns: Vec<f64> = (0..n).map(|i| turn_at(points, i)).collect();

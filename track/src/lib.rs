@@ -1,15 +1,20 @@
 //! The line tracer's tracks, as data with no physics behind them: a closed polyline of
-//! waypoints in a CSV file (see `parse.rs` for the format).
+//! waypoints in a CSV file (see `parse.rs` for the format), or drawn from a seed by the
+//! generator (`generated:N`, see `generate.rs`).
 //!
 //! A [`Track`] is validated once when it is built (`check.rs`), so everything downstream (MJCF
 //! generation, ground truth, the teacher) can assume a simple, closed, drivable line.
 
 mod check;
+mod generate;
 mod parse;
 
 use std::path::{Path, PathBuf};
 
 pub use check::{MIN_BEND_RADIUS_M, MIN_CLEARANCE_M};
+pub use generate::{
+    GENERATED_MIN_RADIUS_M, GENERATED_PREFIX, LENGTH_RANGE_M, generate, generate_counting,
+};
 
 /// Line width used when the file does not say (metres; the paper's tape is about this wide).
 pub const DEFAULT_LINE_WIDTH_M: f64 = 0.025;
@@ -70,6 +75,15 @@ pub enum TrackError {
         dist_m: f64,
         min_m: f64,
     },
+    /// `generated:` is not followed by a seed.
+    #[error(
+        "track {path}: expected `generated:N` with N a whole number from 0 to 2^64-1 (the seed)"
+    )]
+    GeneratedName { path: PathBuf },
+    /// No candidate of the generator passed the checks (a bug in the generator: a few tries
+    /// are normal).
+    #[error("track {path}: the generator found no valid track in {candidates} candidates")]
+    GeneratorGaveUp { path: PathBuf, candidates: u32 },
     /// The line bends more sharply than the car can follow.
     #[error(
         "track {path}, line {line} (point {point}): bend radius {radius_m:.3} m is below the minimum {min_m} m"
@@ -109,8 +123,12 @@ pub struct Projection {
 }
 
 impl Track {
-    /// Loads and validates a track file.
+    /// Loads and validates a track file, or generates the track when `path` is `generated:N`:
+    /// every config key and flag that names a track goes through here, so all accept both.
     pub fn load(path: &Path) -> Result<Track, TrackError> {
+        if let Some(seed) = generate::seed_of(path)? {
+            return generate(seed);
+        }
         let text = std::fs::read_to_string(path).map_err(|source| TrackError::Io {
             path: path.to_path_buf(),
             source,
@@ -198,6 +216,18 @@ impl Track {
     /// File line of each waypoint.
     pub fn point_lines(&self) -> &[usize] {
         &self.lines
+    }
+
+    /// Radius of the tightest bend, measured as the check measures it (over a few cm of line);
+    /// infinite for a line that never turns.
+    pub fn min_bend_radius_m(&self) -> f64 {
+        check::tightest_bend(&self.points, &self.cum).map_or(f64::INFINITY, |(_, r)| r)
+    }
+
+    /// The track in the file format `load` reads (`parse.rs`), 5 decimals (10 um), with
+    /// `comments` as `#` lines at the top.
+    pub fn to_csv(&self, comments: &[&str]) -> String {
+        parse::format(&self.points, self.line_width, comments)
     }
 
     /// Number of segments (= number of points, the line being closed).

@@ -82,6 +82,22 @@ pub(super) fn parse(path: &Path, text: &str) -> Result<Parsed, TrackError> {
     })
 }
 
+/// The text `parse` reads back to the same points (5 decimals: the 10 um generated tracks are
+/// rounded to), header and width included.
+pub(super) fn format(points: &[[f64; 2]], line_width: f64, comments: &[&str]) -> String {
+    use std::fmt::Write;
+    let mut out = String::with_capacity(20 * points.len() + 200);
+    for c in comments {
+        // One comment, one line: a line break would turn the rest into a point.
+        let _ = writeln!(out, "# {}", c.replace(['\n', '\r'], " "));
+    }
+    let _ = writeln!(out, "# width={line_width}\nx,y");
+    for p in points {
+        let _ = writeln!(out, "{:.5},{:.5}", p[0], p[1]);
+    }
+    out
+}
+
 /// `width=0.03` (spaces allowed) inside a comment; other comments are free text.
 fn width_directive(comment: &str) -> Option<&str> {
     let (key, value) = comment.split_once('=')?;

@@ -1,12 +1,12 @@
 //! `mta`: the operator CLI, a thin shell over the crates that do the work: `mtanet-launch`
 //! (up, systemd), `mtanet-soak`, `mtanet-observe` (status, top), `mtanet-recording` (record,
 //! replay), `mtanet-report` (report, plot) and `mtanet-offline` (train, figures, synth, probe,
-//! drive).
+//! drive, track).
 
 use clap::{Parser, Subcommand};
 use mtanet_launch::{systemd, up};
 use mtanet_observe::{status, top};
-use mtanet_offline::{evaluate, figures, synth, train};
+use mtanet_offline::{evaluate, figures, synth, track, train};
 use mtanet_recording::{record, replay};
 use mtanet_report::{plot, report};
 use mtanet_soak as soak;
@@ -57,6 +57,8 @@ enum Cmd {
     Probe(evaluate::ProbeArgs),
     /// Drive a track in-process by active inference, through a checkpoint or the MuJoCo oracle.
     Drive(evaluate::DriveArgs),
+    /// Write a generated track nobody tuned on (`generated:N`) as a track CSV, and its scene.
+    Track(track::TrackArgs),
     /// Render the systemd units of the stack from its [stack] section.
     Systemd(systemd::SystemdArgs),
 }
@@ -78,6 +80,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Plot(a) => plot::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),
+        Cmd::Track(a) => track::run(a),
         Cmd::Systemd(a) => systemd::run(a),
     }
 }

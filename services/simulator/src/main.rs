@@ -22,7 +22,7 @@ struct Args {
     /// Config sections read: [ipc], [simulator], [simulator.scene], [simulator.teacher].
     #[command(flatten)]
     common: CommonArgs,
-    /// Track CSV (overrides simulator.scene.track).
+    /// Track CSV, or `generated:N` for a generated track (overrides simulator.scene.track).
     #[arg(long)]
     track: Option<PathBuf>,
     /// lockstep or realtime (overrides simulator.mode).

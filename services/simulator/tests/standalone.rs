@@ -197,3 +197,114 @@ fn write_mjcf_writes_a_scene_that_another_mujoco_loads() {
     assert!(!out.status.success() && !bad.exists());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/track.csv"));
 }
+
+/// Tracks nobody tuned on: the teacher as configured for the shipped tracks laps a sample of
+/// generated ones (seeds 0 to 4, and the tightest bend among the first 200 seeds), on the line.
+#[test]
+fn teacher_laps_generated_tracks() {
+    let radius = |seed: u64| {
+        mtanet_scenes::track::generate(seed)
+            .unwrap()
+            .min_bend_radius_m()
+    };
+    let tightest = (0..200)
+        .min_by(|a, b| radius(*a).total_cmp(&radius(*b)))
+        .unwrap();
+    let mut seeds: Vec<u64> = (0..5).collect();
+    if !seeds.contains(&tightest) {
+        seeds.push(tightest);
+    }
+    for seed in seeds {
+        let name = format!("generated:{seed}");
+        let mut world = World::new(&SceneConfig::default().with_track(&name)).unwrap();
+        let (len, width) = (world.track().length_m(), world.track().line_width_m());
+        // The teacher cruises at about 0.2 m/s: a lap at 0.15 m/s is the time allowed.
+        let spec = StandaloneRun {
+            sim_seconds: len / 0.15,
+            record: None,
+            seq_len: 20,
+            seed: 0,
+        };
+        let mut teacher = Teacher::new(&TeacherConfig::default());
+        let r = run(&mut world, &mut teacher, &spec, &Shutdown::manual()).unwrap();
+        println!(
+            "{name}: {len:.2} m, tightest bend {:.3} m: {} lap(s) in {:.0} s, lateral max {:.4} m, on the line {:.3}",
+            world.track().min_bend_radius_m(),
+            r.laps,
+            r.sim_seconds,
+            r.lateral_error_m.max,
+            r.on_line_fraction
+        );
+        assert!(
+            r.laps >= 1,
+            "{name} ({len:.2} m): no lap in {} s",
+            r.sim_seconds
+        );
+        assert!(
+            r.lateral_error_m.max < width,
+            "{name}: {:?}",
+            r.lateral_error_m
+        );
+        assert!(r.on_line_fraction > 0.99, "{name}: {}", r.on_line_fraction);
+        assert_eq!(r.rejected_commands, 0, "{name}");
+    }
+}
+
+/// `generated:N` on the command line: the teacher run, the scene written with `--write-mjcf`
+/// (which MuJoCo 2.2.2 compiles too), and a malformed name named in the error.
+#[test]
+fn generated_tracks_by_name_on_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("rep.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .args([
+            "--teacher-only",
+            "--sim-seconds",
+            "60",
+            "--track",
+            "generated:3",
+        ])
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["track"], "generated:3", "{r}");
+    assert!(r["laps"].as_u64().unwrap() >= 1, "{r}");
+
+    let xml = dir.path().join("g7.xml");
+    let out = Command::new(env!("CARGO_BIN_EXE_mta-simulator"))
+        .arg("--write-mjcf")
+        .arg(&xml)
+        .args(["--track", "generated:7"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let scene = World::new(&SceneConfig::default().with_track("generated:7")).unwrap();
+    assert_eq!(std::fs::read_to_string(&xml).unwrap(), scene.mjcf());
+    let mjb = dir.path().join("g7.mjb");
+    let c = Command::new("mujoco-compile").arg(&xml).arg(&mjb).output();
+    let c = c.expect("mujoco-compile (Debian's libmujoco-samples; ./ops/setup.sh installs it)");
+    assert!(
+        mjb.is_file(),
+        "MuJoCo 2.2.2: {}",
+        String::from_utf8_lossy(&c.stdout)
+    );
+
+    let err = failing_run(&[
+        "--write-mjcf".as_ref(),
+        xml.as_os_str(),
+        "--track".as_ref(),
+        "generated:seven".as_ref(),
+    ]);
+    assert!(err.contains("generated:seven"), "{err}");
+}
