@@ -7,6 +7,7 @@ use std::time::Instant;
 use hdrhistogram::Histogram;
 use mtanet_control::{Agent, AgentModel, AgentStats, Driver, PlanService, Tick};
 use mtanet_scenes::{CommandSource, Drive, ResetRule, World};
+use mtanet_summaries::LatencySummary;
 use serde::{Deserialize, Serialize};
 
 use crate::oracle::SeesWorld;
@@ -40,27 +41,6 @@ impl Default for DriveConfig {
     }
 }
 
-/// Percentiles in milliseconds.
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]
-pub struct Millis {
-    pub count: u64,
-    pub p50: f64,
-    pub p99: f64,
-    pub max: f64,
-}
-
-impl Millis {
-    pub fn of(h: &Histogram<u64>) -> Self {
-        let ms = |us: u64| us as f64 / 1000.0;
-        Self {
-            count: h.len(),
-            p50: ms(h.value_at_quantile(0.5)),
-            p99: ms(h.value_at_quantile(0.99)),
-            max: ms(h.max()),
-        }
-    }
-}
-
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 pub struct TracePoint {
     pub step: u64,
@@ -83,7 +63,7 @@ pub struct DriveReport {
     pub lateral_active_inference_m: Option<f64>,
     pub agent: AgentStats,
     /// Wall time of the plans taken up.
-    pub plan_ms: Millis,
+    pub plan: LatencySummary,
     pub wall_seconds: f64,
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub trace: Vec<TracePoint>,
@@ -110,7 +90,7 @@ where
     let mut car = Drive::new(world, rule);
     let wall = Instant::now();
     let mut report = DriveReport::default();
-    let mut plan_us = Histogram::<u64>::new(3)?;
+    let mut plan_ns = Histogram::<u64>::new(3)?;
     while car.steps() < cfg.max_steps {
         let f = car.sense();
         let s = &f.sensors;
@@ -124,7 +104,7 @@ where
         };
         let d = agent.step(&tick, model, plans)?;
         if let Some((_, compute)) = &d.plan {
-            plan_us.record(compute.as_micros() as u64)?;
+            plan_ns.record(compute.as_nanos() as u64)?;
         }
         if cfg.trace_every > 0 && f.step % cfg.trace_every == 0 {
             report.trace.push(TracePoint {
@@ -159,7 +139,7 @@ where
     report.lateral_active_inference_m =
         score.lateral_mean_of(|s| s == CommandSource::ActiveInference);
     report.agent = agent.stats;
-    report.plan_ms = Millis::of(&plan_us);
+    report.plan = LatencySummary::of_ns(&plan_ns);
     report.wall_seconds = wall.elapsed().as_secs_f64();
     Ok(report)
 }

@@ -41,19 +41,7 @@ impl LatencyStats {
     }
 
     pub fn summary(&self) -> LatencySummary {
-        let h = &self.0;
-        if h.is_empty() {
-            return LatencySummary::default();
-        }
-        let us = |ns: u64| ns as f64 / 1e3;
-        LatencySummary {
-            count: h.len(),
-            p50_us: us(h.value_at_quantile(0.5)),
-            p90_us: us(h.value_at_quantile(0.9)),
-            p99_us: us(h.value_at_quantile(0.99)),
-            p999_us: us(h.value_at_quantile(0.999)),
-            max_us: us(h.max()),
-        }
+        LatencySummary::of_ns(&self.0)
     }
 }
 

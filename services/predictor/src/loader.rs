@@ -41,7 +41,11 @@ pub fn prepare(bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<Prepare
         model,
         imagined,
         version,
-        probe: probe.is_finite().then_some(f64::from(probe)),
+        // The sender's probe, else the one recorded in the checkpoint (a file).
+        probe: probe
+            .is_finite()
+            .then_some(f64::from(probe))
+            .or(ck.meta.probe),
         decode_ms: t0.elapsed().as_secs_f64() * 1e3,
     })
 }

@@ -72,10 +72,7 @@ impl Policy {
     pub fn load_file(&mut self, path: &std::path::Path) -> anyhow::Result<()> {
         use anyhow::Context;
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        let ck = mtanet_models::checkpoint::from_bytes(&bytes)
-            .with_context(|| format!("the checkpoint {}", path.display()))?;
-        let probe = ck.meta.probe.map_or(f32::NAN, |p| p as f32);
-        self.load_weights(&bytes, 0, probe)
+        self.load_weights(&bytes, 0, f32::NAN)
             .map(drop)
             .with_context(|| format!("the checkpoint {}", path.display()))
     }
