@@ -15,8 +15,8 @@ fn sizes_and_alignment_are_pinned() {
         size_of::<ReplayChunk>(),
         8 * 3 + 8 + 20 * 96 * 4 + 20 * 2 * 4 + 24
     );
-    assert_eq!(size_of::<WeightsHeader>(), 8 * 4 + 8 + 16);
-    assert_eq!(size_of::<TrainerStatus>(), 8 * 5 + 8);
+    assert_eq!(size_of::<WeightsHeader>(), 8 * 4 + 8 + 16 + 8);
+    assert_eq!(size_of::<TrainerStatus>(), 8 * 5 + 8 + 8 * 3);
     assert_eq!(
         size_of::<ProcessStats>(),
         8 + 16 + 8 + 8 + 8 + 8 + 16 + 32 + 8 + 16 + 8

@@ -4,7 +4,7 @@ use iceoryx2::prelude::ZeroCopySend;
 /// User header of the weights topic, whose payload is a `[u8]` slice holding one checkpoint
 /// (safetensors with config and metadata, exactly the bytes of a checkpoint file).
 #[derive(Debug, Clone, Copy, Default, Zeroable, bytemuck::Pod, ZeroCopySend)]
-#[type_name("mtanet::WeightsHeader/v2")]
+#[type_name("mtanet::WeightsHeader/v3")]
 #[repr(C)]
 pub struct WeightsHeader {
     /// `CLOCK_MONOTONIC` ns when published.
@@ -24,4 +24,7 @@ pub struct WeightsHeader {
     /// That probe's rank correlation (NaN: never measured).
     pub probe: f32,
     pub _reserved: u32,
+    /// Lockstep learning: the observation step from which the predictor drives with these
+    /// weights, fixed by the data they were learnt from (0: as soon as they are decoded).
+    pub install_step: u64,
 }

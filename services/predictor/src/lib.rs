@@ -3,6 +3,7 @@
 //! model the trainer sends is trusted, then active inference planning through it.
 
 pub mod config;
+pub mod intake;
 pub mod loader;
 pub mod policy;
 pub mod service;

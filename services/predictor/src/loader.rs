@@ -54,11 +54,15 @@ struct Job {
     bytes: Vec<u8>,
     version: u64,
     probe: f32,
+    install_step: u64,
 }
+
+/// A checkpoint the loader is done with: version, install step, and the model or why not.
+pub type Decoded = (u64, u64, anyhow::Result<Prepared>);
 
 pub struct Loader {
     to: Option<mpsc::Sender<Job>>,
-    from: mpsc::Receiver<(u64, anyhow::Result<Prepared>)>,
+    from: mpsc::Receiver<Decoded>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -72,7 +76,7 @@ impl Loader {
                 background_priority(nice, "weights loader");
                 for job in jobs {
                     let r = prepare(&job.bytes, job.version, job.probe);
-                    if done.send((job.version, r)).is_err() {
+                    if done.send((job.version, job.install_step, r)).is_err() {
                         break;
                     }
                 }
@@ -85,11 +89,18 @@ impl Loader {
     }
 
     /// Queues a checkpoint (copied out of shared memory: the sample goes back at once).
-    pub fn submit(&self, bytes: &[u8], version: u64, probe: f32) -> anyhow::Result<()> {
+    pub fn submit(
+        &self,
+        bytes: &[u8],
+        version: u64,
+        probe: f32,
+        install_step: u64,
+    ) -> anyhow::Result<()> {
         let job = Job {
             bytes: bytes.to_vec(),
             version,
             probe,
+            install_step,
         };
         self.to
             .as_ref()
@@ -98,9 +109,16 @@ impl Loader {
             .map_err(|_| anyhow::anyhow!("the weights loader has stopped"))
     }
 
-    /// A decoded checkpoint (or why it was refused), with its version, when one is ready.
-    pub fn try_take(&self) -> Option<(u64, anyhow::Result<Prepared>)> {
+    /// A decoded checkpoint (or why it was refused), when one is ready.
+    pub fn try_take(&self) -> Option<Decoded> {
         self.from.try_recv().ok()
+    }
+
+    /// The next decoded checkpoint, waiting for it.
+    pub fn take(&self) -> anyhow::Result<Decoded> {
+        self.from
+            .recv()
+            .map_err(|_| anyhow::anyhow!("the weights loader has stopped"))
     }
 }
 

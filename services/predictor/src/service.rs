@@ -15,8 +15,8 @@ use mtanet_ipc::weights_topic::WeightsReceiver;
 use mtanet_ipc::{Command, Observation, names, stamp};
 
 use crate::config::PredictorConfig;
-use crate::loader::Loader;
-use crate::policy::{Install, Policy};
+use crate::intake::Intake;
+use crate::policy::Policy;
 
 /// What the predictor reports at exit (a plain data type of `mtanet-summaries`).
 pub use mtanet_summaries::predictor::Summary;
@@ -71,7 +71,7 @@ pub fn run_with(
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
     let mut failure: Option<anyhow::Error> = None;
-    let loader = Loader::spawn(cfg.planner_nice)?;
+    let mut intake = Intake::new(cfg.planner_nice)?;
     // Ready only now: a simulator started on READY must find this loop answering its first step.
     mtanet_ipc::systemd::ready("predictor running");
 
@@ -81,6 +81,7 @@ pub fn run_with(
                 answer_observations(
                     ports,
                     &mut policy,
+                    &mut intake,
                     &mut summary,
                     &mut expected_step,
                     &mut stats,
@@ -102,9 +103,9 @@ pub fn run_with(
         if failure.is_none() {
             // Also without an event: a notification sent before this listener existed (the
             // trainer serving a new subscriber) is lost, the weights are not.
-            receive_weights(ports, &loader, &mut summary)?;
+            intake.receive(ports, &mut summary)?;
         }
-        install_weights(&loader, &mut policy, &mut summary)?;
+        intake.install_due(None, &mut policy, &mut summary)?;
         watchdog.pet();
         ports.stats.borrow_mut().tick(
             summary.commands_sent,
@@ -164,6 +165,7 @@ pub fn run_with(
 fn answer_observations(
     ports: &Ports,
     policy: &mut Policy,
+    intake: &mut Intake,
     summary: &mut Summary,
     expected_step: &mut Option<u64>,
     stats: &mut StepStats,
@@ -180,6 +182,9 @@ fn answer_observations(
             summary.step_gaps += 1;
         }
         *expected_step = Some(obs.step + 1);
+        // Weights sent before this observation and due at its step drive it.
+        intake.receive(ports, summary)?;
+        intake.install_due(Some(obs.step), policy, summary)?;
         let t0 = Instant::now();
         let late_before = policy.stats().late_plans;
         let decision = policy.act(&obs)?;
@@ -226,60 +231,6 @@ fn answer_observations(
         let t1 = Instant::now();
         policy.after_command()?;
         stats.after.record_ns(t1.elapsed().as_nanos() as u64);
-    }
-    Ok(())
-}
-
-/// Hands a checkpoint from the weights topic to the loader (decoding it here would stall the
-/// control loop for several ms).
-fn receive_weights(ports: &Ports, loader: &Loader, summary: &mut Summary) -> anyhow::Result<()> {
-    if let Some(r) = ports
-        .weights
-        .latest(|h, bytes| loader.submit(bytes, h.version, h.probe))?
-    {
-        r?;
-        summary.weights_received += 1;
-    }
-    Ok(())
-}
-
-/// Takes in the checkpoints the loader has decoded: a copy in place, between two steps.
-fn install_weights(
-    loader: &Loader,
-    policy: &mut Policy,
-    summary: &mut Summary,
-) -> anyhow::Result<()> {
-    while let Some((version, prepared)) = loader.try_take() {
-        let t0 = Instant::now();
-        let outcome = prepared.and_then(|p| {
-            let (decode_ms, probe) = (p.decode_ms, p.probe);
-            policy.install(p).map(|i| (i, decode_ms, probe))
-        });
-        match outcome {
-            Ok((Install::HeldBack, _, probe)) => {
-                summary.weights_held_back += 1;
-                tracing::info!(
-                    version,
-                    ?probe,
-                    "weights held back: their probe failed while the model in hand drives"
-                );
-            }
-            Ok((Install::Installed, decode_ms, _)) => {
-                summary.weights_installed += 1;
-                summary.model_version = version;
-                let install_ms = t0.elapsed().as_secs_f64() * 1e3;
-                let probe = policy.model.as_ref().and_then(|m| m.probe);
-                tracing::info!(version, ?probe, decode_ms, install_ms, "weights loaded");
-            }
-            Err(e) => {
-                // A damaged or mismatched checkpoint must not stop the car: keep what we had.
-                summary.weights_rejected += 1;
-                tracing::error!(
-                    version,
-                    "rejected weights, keeping the previous model: {e:#}"
-                );
-            }
-        }
     }
     Ok(())
 }

@@ -24,6 +24,9 @@ pub struct Answers {
     /// The last command the world accepted (what `Hold` repeats).
     pub last: [f32; 2],
     misses_in_a_row: u32,
+    /// Lockstep learning: a late answer is waited for as long as the predictor lives (a
+    /// stand-in would make the run depend on the machine's speed).
+    pub patient: bool,
     /// Observation published -> its command received.
     pub round_trip: LatencyStats,
     /// Command published by the predictor -> taken in here.
@@ -44,6 +47,7 @@ impl Answers {
             on_miss: cfg.on_missed_command,
             last: [0.0; 2],
             misses_in_a_row: 0,
+            patient: false,
             round_trip: LatencyStats::new(),
             cmd_to_sim: LatencyStats::new(),
         }
@@ -66,13 +70,17 @@ impl Answers {
         let predictor = ports.commands.publishers() > 0;
         // Without a predictor only look (no wait): one that answered and left still counts.
         let wait = if predictor { self.wait } else { Duration::ZERO };
-        let answer = await_command(
-            ports,
-            frame.step,
-            wait,
-            shutdown,
-            &mut summary.stale_commands,
-        )?;
+        let stale = &mut summary.stale_commands;
+        let mut answer = await_command(ports, frame.step, wait, shutdown, stale)?;
+        while answer.is_none()
+            && self.patient
+            && self.lockstep
+            && !shutdown.requested()
+            && ports.commands.publishers() > 0
+            && node.try_cleanup_dead_nodes().cleanups == 0
+        {
+            answer = await_command(ports, frame.step, wait, shutdown, stale)?;
+        }
         if let Some((c, received_ns)) = answer {
             self.misses_in_a_row = 0;
             if c.step == frame.step {

@@ -99,6 +99,40 @@ impl Pace {
         Ok(())
     }
 
+    /// Lockstep learning (the trainer's `schedule.rs`): blocks before step `step` while weights
+    /// due at or before it are not out yet, so the predictor has them when it answers it.
+    pub fn wait_for_weights(
+        &mut self,
+        rx: &Receiver<TrainerStatus>,
+        step: u64,
+        shutdown: &Shutdown,
+        watchdog: &mut Watchdog,
+    ) -> anyhow::Result<()> {
+        if !self.enabled {
+            return Ok(());
+        }
+        let t0 = Instant::now();
+        loop {
+            self.refresh(rx)?;
+            let out = self.latest.is_some_and(|s| s.next_install_step > step);
+            if out || rx.publishers() == 0 || shutdown.requested() {
+                break;
+            }
+            rx.wait(Duration::from_millis(100))?;
+            watchdog.pet();
+        }
+        self.waited += t0.elapsed();
+        Ok(())
+    }
+
+    /// A trainer's schedule is in force: weights are due at fixed steps, and a lockstep step
+    /// waits for its command as long as the predictor lives.
+    pub fn scheduled(&self, rx: &Receiver<TrainerStatus>) -> bool {
+        self.enabled
+            && rx.publishers() > 0
+            && self.latest.is_some_and(|s| s.next_install_step != u64::MAX)
+    }
+
     pub fn summary(&self, step: u64) -> PaceSummary {
         let mut s = PaceSummary {
             target_updates_per_1000_steps: if self.enabled { self.rate } else { 0.0 },

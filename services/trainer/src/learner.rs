@@ -144,6 +144,11 @@ impl Learner {
         self.last_loss
     }
 
+    /// Whether the update that reaches training step `step` publishes its weights.
+    pub fn publishes_at(&self, step: u64) -> bool {
+        step % self.publish_every == 0 || self.prober.as_ref().is_some_and(|p| p.due(step))
+    }
+
     /// Training step of the checkpoint resumed from (0: a fresh start).
     pub fn resumed_from(&self) -> u64 {
         self.resumed_from
@@ -170,12 +175,16 @@ impl Learner {
     /// One update on a random batch of windows; probes when due, and when a publication is due
     /// returns it with the update (the service sends it). A refused (non-finite) update is
     /// logged and counted, the weights stay as they were. `None` also when the buffer holds no
-    /// run of driving long enough for a window yet.
-    pub fn train_once(&mut self, buffer: &ReplayBuffer) -> anyhow::Result<Option<Update>> {
+    /// run of driving long enough for a window yet. `upto`: draw only from the chunks received
+    /// before this one (lockstep learning's horizon).
+    pub fn train_once(
+        &mut self,
+        buffer: &ReplayBuffer,
+        upto: Option<u64>,
+    ) -> anyhow::Result<Option<Update>> {
         let b = self.trainer.train_cfg.batch_size.max(1) as usize;
-        let skip = self.frame_skip();
-        let Some(batch) = buffer.sample(&mut self.rng, b, self.sequence_steps, skip, self.mirror)
-        else {
+        let shape = (b, self.sequence_steps, self.frame_skip());
+        let Some(batch) = buffer.sample(&mut self.rng, shape, self.mirror, upto) else {
             return Ok(None);
         };
         let (images, actions) = to_tensors(&batch);
@@ -186,7 +195,7 @@ impl Learner {
                 if probe_due {
                     self.run_probe()?;
                 }
-                let publish = if probe_due || stats.step % self.publish_every == 0 {
+                let publish = if probe_due || self.publishes_at(stats.step) {
                     Some(self.publication()?)
                 } else {
                     None

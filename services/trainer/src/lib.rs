@@ -7,4 +7,5 @@ pub mod curve;
 pub mod learner;
 pub mod probe;
 pub mod replay;
+pub mod schedule;
 pub mod service;

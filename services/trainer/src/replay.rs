@@ -32,8 +32,14 @@ impl Chunk {
     }
 }
 
+/// Chunks held beyond the capacity, so that an update of lockstep learning whose horizon lags
+/// the newest chunks still sees the same `capacity` chunks before it.
+const LOOKAHEAD_CHUNKS: usize = 1024;
+
 pub struct ReplayBuffer {
     chunks: VecDeque<Chunk>,
+    /// Chunks a batch is drawn from (the newest before its horizon).
+    capacity: usize,
     /// Slots not yet filled.
     free: Vec<Chunk>,
     received: u64,
@@ -60,9 +66,11 @@ impl ReplayBuffer {
     /// oldest chunks allocates nothing, so the trainer's memory stays flat through a long run.
     pub fn new(capacity: usize) -> Self {
         let capacity = capacity.max(1);
+        let slots = capacity + LOOKAHEAD_CHUNKS;
         Self {
-            chunks: VecDeque::with_capacity(capacity),
-            free: (0..capacity).map(|_| Chunk::slot()).collect(),
+            chunks: VecDeque::with_capacity(slots),
+            capacity,
+            free: (0..slots).map(|_| Chunk::slot()).collect(),
             received: 0,
             steps_received: 0,
             steps_by_source: [0; 6],
@@ -109,9 +117,28 @@ impl ReplayBuffer {
         self.chunks.push_back(slot);
     }
 
-    /// Chunks held.
+    /// Chunks a batch is drawn from now (at most the capacity).
     pub fn len(&self) -> usize {
-        self.chunks.len()
+        self.chunks.len().min(self.capacity)
+    }
+
+    /// The step after the last one of the `arrival`-th chunk received (0-based), if held.
+    pub fn end_step(&self, arrival: u64) -> Option<u64> {
+        let first = self.received - self.chunks.len() as u64;
+        let c = self
+            .chunks
+            .get(usize::try_from(arrival.checked_sub(first)?).ok()?)?;
+        Some(c.first_step + c.images.len() as u64)
+    }
+
+    /// Positions in `chunks` a batch draws from: the `capacity` newest chunks before the
+    /// `upto`-th received (all received: None).
+    fn window(&self, upto: Option<u64>) -> std::ops::Range<usize> {
+        let first = self.received - self.chunks.len() as u64;
+        let end = upto.map_or(self.chunks.len(), |u| {
+            (u.saturating_sub(first) as usize).min(self.chunks.len())
+        });
+        end.saturating_sub(self.capacity)..end
     }
 
     pub fn is_empty(&self) -> bool {
@@ -139,11 +166,15 @@ impl ReplayBuffer {
         self.steps_by_source[CommandSource::Exploration as usize] as f64 / total as f64
     }
 
-    /// Control steps from chunk `c`, offset `o` on, that continue without a gap or a reset.
-    fn contiguous_from(&self, c: usize, o: usize, need: usize) -> bool {
+    /// Control steps from chunk `c`, offset `o` on, that continue without a gap or a reset
+    /// and end before position `end`.
+    fn contiguous_from(&self, c: usize, o: usize, need: usize, end: usize) -> bool {
         let mut have = self.chunks[c].images.len() - o;
         let mut i = c;
         while have < need {
+            if i + 1 >= end {
+                return false;
+            }
             let (a, b) = match (self.chunks.get(i), self.chunks.get(i + 1)) {
                 (Some(a), Some(b)) => (a, b),
                 _ => return false,
@@ -177,18 +208,20 @@ impl ReplayBuffer {
         (imgs, acts)
     }
 
-    /// A random batch of `batch` windows of `steps` model steps at `skip`; `None` when the
-    /// buffer holds no run long enough (after a bounded number of tries per window). With
-    /// `mirror`, each window is mirrored left-right with probability 1/2 (see [`mirror`]).
+    /// A random batch of `batch` windows of `steps` model steps at `skip`, from the chunks
+    /// received before the `upto`-th (all: None); `None` when they hold no run long enough
+    /// (after a bounded number of tries per window). With `mirror`, each window is mirrored
+    /// left-right with probability 1/2 (see [`mirror`]).
     pub fn sample(
         &self,
         rng: &mut impl Rng,
-        batch: usize,
-        steps: usize,
-        skip: usize,
+        shape: (usize, usize, usize),
         mirror_windows: bool,
+        upto: Option<u64>,
     ) -> Option<Batch> {
-        if self.chunks.is_empty() {
+        let (batch, steps, skip) = shape;
+        let window = self.window(upto);
+        if window.is_empty() {
             return None;
         }
         let span = window_span(skip, steps);
@@ -200,9 +233,9 @@ impl ReplayBuffer {
         };
         for _ in 0..batch {
             let found = (0..64).find_map(|_| {
-                let c = rng.random_range(0..self.chunks.len());
+                let c = rng.random_range(window.clone());
                 let o = rng.random_range(0..self.chunks[c].images.len().max(1));
-                (self.chunks[c].images.len() > o && self.contiguous_from(c, o, span))
+                (self.chunks[c].images.len() > o && self.contiguous_from(c, o, span, window.end))
                     .then_some((c, o))
             });
             let (c, o) = found?;
@@ -307,7 +340,7 @@ mod tests {
             b.push(&chunk(seq, first, ep));
         }
         // 4 model steps at skip 5 need 5 - 1 + 3 * 5 + 1 = 20 steps: fits in either episode.
-        let batch = b.sample(&mut rng, 32, 4, 5, false).unwrap();
+        let batch = b.sample(&mut rng, (32, 4, 5), false, None).unwrap();
         for w in batch.images.chunks(4 * IMAGE_PIXELS) {
             let f: Vec<f32> = w.chunks(IMAGE_PIXELS).map(|p| p[0]).collect();
             assert!(
@@ -327,7 +360,7 @@ mod tests {
         // 12 model steps (60 steps) fit only in episode 0 from its very start: never found in
         // episode 1, and all windows come from episode 0.
         assert!(
-            b.sample(&mut rng, 4, 13, 5, false).is_none(),
+            b.sample(&mut rng, (4, 13, 5), false, None).is_none(),
             "65 steps exist nowhere"
         );
     }
@@ -345,7 +378,7 @@ mod tests {
         let mut b = ReplayBuffer::new(4);
         b.push(&chunk(0, 0, 0));
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
-        let batch = b.sample(&mut rng, 200, 2, 1, true).unwrap();
+        let batch = b.sample(&mut rng, (200, 2, 1), true, None).unwrap();
         let swapped = batch.actions.chunks(4).filter(|a| a[1] != 0.0).count();
         assert!((60..140).contains(&swapped), "{swapped} of 200 mirrored");
     }

@@ -17,6 +17,7 @@ use crate::config::TrainerConfig;
 use crate::curve::{Curve, CurvePoint};
 use crate::learner::{Learner, Publication, Update};
 use crate::replay::ReplayBuffer;
+use crate::schedule::Schedule;
 
 /// What the trainer reports at exit (a plain data type of `mtanet-summaries`).
 pub use mtanet_summaries::trainer::Summary;
@@ -53,15 +54,24 @@ fn send(ports: &Ports, p: Publication) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Tells the simulator (pacing) how far training has come.
+/// Tells the simulator (pacing) how far training has come, and the predictor and simulator
+/// when the next weights can be due.
 fn publish_status(
     ports: &Ports,
     learner: &Learner,
     buffer: &ReplayBuffer,
+    schedule: &Schedule,
     session: u64,
     training: bool,
 ) -> anyhow::Result<()> {
+    // The next update that publishes, counted in this process's updates.
+    let step = learner.updates();
+    let ahead = (1..).find(|d| learner.publishes_at(step + d)).unwrap_or(1);
+    let next = schedule.next_install_step(session + ahead - 1, buffer.pace(), buffer);
     ports.status.send_with(|s| {
+        s.published = schedule.published;
+        s.last_install_step = schedule.last_install_step;
+        s.next_install_step = next;
         s.updates = learner.updates();
         s.session_updates = session;
         s.chunks_received = buffer.received();
@@ -73,27 +83,59 @@ fn publish_status(
     Ok(())
 }
 
-/// Lockstep pacing from the trainer's side: the simulator waits when it is ahead of the rate in
-/// its chunks; the trainer waits for steps when it is ahead, so the rate holds both ways.
-#[derive(Default)]
-struct KeepPace {
-    start: Option<(u64, u64)>,
+/// Where a run of updates stands.
+struct At<'a> {
+    session: &'a mut u64,
+    schedule: &'a mut Schedule,
+    curve: &'a mut Option<Curve>,
+    update_time: &'a mut LatencyStats,
 }
 
-impl KeepPace {
-    fn may_update(&mut self, buffer: &ReplayBuffer, session: u64) -> bool {
-        let rate = f64::from(buffer.pace());
-        if rate <= 0.0 {
-            self.start = None;
-            return true;
+/// One update (at the schedule's horizon when there is one); sends the weights it publishes,
+/// stamped with their install step.
+fn update_once(
+    ports: &Ports,
+    learner: &mut Learner,
+    buffer: &ReplayBuffer,
+    at: &mut At<'_>,
+) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let horizon = at.schedule.horizon(*at.session, buffer.pace());
+    let Some(Update { stats: u, publish }) = learner.train_once(buffer, horizon)? else {
+        if horizon.is_some() {
+            // No window before this horizon (or a refused update): the slot passes, so the
+            // schedule moves on as it would anywhere.
+            *at.session += 1;
         }
-        let (s0, u0) = *self.start.get_or_insert((buffer.steps_received(), session));
-        // Slack: chunks arrive 20 steps at a time and the simulator's own slack is one update,
-        // so being this far ahead never stops both sides at once.
-        let slack = 2.0 + 40.0 * rate / 1000.0;
-        let allowed = buffer.steps_received().saturating_sub(s0) as f64 * rate / 1000.0 + slack;
-        (session.saturating_sub(u0) as f64) < allowed
+        return Ok(());
+    };
+    if let Some(mut p) = publish {
+        if let Some(h) = horizon {
+            p.header.install_step = at.schedule.install_step(h, buffer);
+            at.schedule.published += 1;
+            at.schedule.last_install_step = p.header.install_step;
+        }
+        send(ports, p)?;
     }
+    let took = t0.elapsed();
+    at.update_time.record_ns(took.as_nanos() as u64);
+    *at.session += 1;
+    if let Some(c) = at.curve.as_mut() {
+        c.record(&CurvePoint {
+            step: u.step,
+            wall_s: c.wall_s(),
+            loss: u.loss,
+            grad_norm: u.grad_norm,
+            clipped: u.clipped,
+            update_ms: took.as_secs_f64() * 1e3,
+            replay_sequences: buffer.len(),
+            chunks_received: buffer.received(),
+            chunks_lost: buffer.lost(),
+            steps_received: buffer.steps_received(),
+            probe: learner.probe().map(|p| p.1),
+        });
+    }
+    Ok(())
 }
 
 /// Runs until a signal. `learner` is built by the caller (with or without a probe).
@@ -114,8 +156,8 @@ pub fn run_with(
         send(ports, learner.publication()?)?;
     }
     let mut session = 0u64;
-    let mut keep_pace = KeepPace::default();
-    publish_status(ports, &learner, &buffer, session, false)?;
+    let mut schedule = Schedule::default();
+    publish_status(ports, &learner, &buffer, &schedule, session, false)?;
     tracing::info!(
         min_sequences = cfg.min_sequences,
         "model ready; waiting for replay chunks"
@@ -129,61 +171,45 @@ pub fn run_with(
         // With data to learn from, only look for new chunks and go on training; otherwise block
         // (also while ahead of a lockstep simulator's pace).
         let ready = learner.ready(&buffer);
-        let training = ready && keep_pace.may_update(&buffer, session);
+        let rate = buffer.pace();
+        let training = ready && schedule.may_update(session, rate, buffer.received());
         let timeout = if training {
             Duration::ZERO
         } else {
             Duration::from_millis(100)
         };
-        let mut took = 0;
         let mut on_event = |id: WaitSetAttachmentId<ipc::Service>| {
             if id.has_event_from(&replay_guard) {
-                let res = ports
-                    .replay
-                    .drain_events()
-                    .and_then(|_| ports.replay.for_each(|c| buffer.push(c)));
-                match res {
-                    Ok(n) => took += n,
-                    Err(e) => {
-                        failure = Some(e);
-                        return CallbackProgression::Stop;
-                    }
+                // One chunk at a time: the schedule starts at the very chunk that made the
+                // buffer ready, however many arrived together.
+                let res = ports.replay.drain_events().and_then(|_| {
+                    ports.replay.for_each(|c| {
+                        buffer.push(c);
+                        schedule.see(buffer.received(), learner.ready(&buffer));
+                    })
+                });
+                if let Err(e) = res {
+                    failure = Some(e);
+                    return CallbackProgression::Stop;
                 }
             }
             CallbackProgression::Continue
         };
         waitset.wait_and_process_once_with_timeout(&mut on_event, timeout)?;
         if training && failure.is_none() {
-            let t0 = Instant::now();
-            if let Some(Update { stats: u, publish }) = learner.train_once(&buffer)? {
-                if let Some(p) = publish {
-                    send(ports, p)?;
-                }
-                let took = t0.elapsed();
-                update_time.record_ns(took.as_nanos() as u64);
-                session += 1;
-                if let Some(c) = curve.as_mut() {
-                    let point = CurvePoint {
-                        step: u.step,
-                        wall_s: c.wall_s(),
-                        loss: u.loss,
-                        grad_norm: u.grad_norm,
-                        clipped: u.clipped,
-                        update_ms: took.as_secs_f64() * 1e3,
-                        replay_sequences: buffer.len(),
-                        chunks_received: buffer.received(),
-                        chunks_lost: buffer.lost(),
-                        steps_received: buffer.steps_received(),
-                        probe: learner.probe().map(|p| p.1),
-                    };
-                    c.record(&point);
-                }
-            }
-            publish_status(ports, &learner, &buffer, session, true)?;
-        } else if ready || took > 0 {
-            // Also while filling the buffer: a simulator lingering at exit waits for its last
-            // chunks to be taken.
-            publish_status(ports, &learner, &buffer, session, ready)?;
+            let mut at = At {
+                session: &mut session,
+                schedule: &mut schedule,
+                curve: &mut curve,
+                update_time: &mut update_time,
+            };
+            update_once(ports, &mut learner, &buffer, &mut at)?;
+            publish_status(ports, &learner, &buffer, &schedule, session, true)?;
+        } else {
+            // Also while filling the buffer or idle: a lockstep simulator waits on it (its
+            // start, the schedule, the linger at exit), and iceoryx2 hands a late subscriber
+            // the history only when the publisher sends.
+            publish_status(ports, &learner, &buffer, &schedule, session, ready)?;
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
@@ -216,7 +242,24 @@ pub fn run_with(
     }
     // A clean stop loses nothing already delivered: count the chunks still queued (they were
     // waiting while an update ran) and keep the updates made since the last publish on disk.
-    ports.replay.for_each(|c| buffer.push(c))?;
+    ports.replay.for_each(|c| {
+        buffer.push(c);
+        schedule.see(buffer.received(), learner.ready(&buffer));
+    })?;
+    // Lockstep learning: every update whose data is in is made, so a run learns the same
+    // however soon after its last step the trainer is stopped.
+    while schedule
+        .horizon(session, buffer.pace())
+        .is_some_and(|h| h <= buffer.received())
+    {
+        let mut at = At {
+            session: &mut session,
+            schedule: &mut schedule,
+            curve: &mut curve,
+            update_time: &mut update_time,
+        };
+        update_once(ports, &mut learner, &buffer, &mut at)?;
+    }
     learner.save_on_stop()?;
     Ok(Summary {
         chunks_received: buffer.received(),
