@@ -42,7 +42,8 @@ pub fn variants_dot_plot<S: AsRef<str>>(
         chart
             .configure_mesh()
             .disable_x_mesh()
-            .light_line_style(RGBColor(235, 235, 235))
+            .light_line_style(RGBColor(238, 238, 238))
+            .max_light_lines(4)
             .x_label_formatter(&name)
             .y_label_formatter(&|v| fmt_tick(*v))
             .x_desc("variant")

@@ -59,6 +59,7 @@ pub fn latency_histograms(path: &Path, series: &[(&str, &[[f64; 2]])]) -> Result
                 .configure_mesh()
                 .x_labels(8)
                 .light_line_style(RGBColor(242, 242, 242))
+                .max_light_lines(4)
                 .y_labels(6)
                 .x_label_formatter(&|v| fmt_us(*v))
                 .y_label_formatter(&|v| fmt_tick(*v))

@@ -50,7 +50,7 @@ pub fn draw(column: &Area, top: i32, entries: &[(String, Swatch)]) -> DrawResult
                 column.draw(&Circle::new((16, y), 5, colour(c).filled()))?;
             }
         }
-        column.draw_text(name, &text(14), (36, y - 8))?;
+        column.draw_text(name, &text(14), (36, y - 6))?;
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
 use crate::legend::{self, Swatch};
-use crate::ticks::{decades, fmt_tick, log_axis, padded};
+use crate::ticks::{LogAxis, decades, fmt_tick, padded};
 use crate::{Area, DrawResult, GREY, PlotError, Rgb, colour, render, text};
 
 /// One named line.
@@ -49,7 +49,7 @@ pub fn lines_chart(path: &Path, x_label: &str, panels: &[Panel]) -> Result<(), P
             let (area, column) = legend::split(area);
             let y = y_range(p);
             if p.log_y {
-                panel(&area, p, x0..x1, log_axis(y.0, y.1).log_scale(), x_label)?;
+                panel(&area, p, x0..x1, LogAxis::new(y.0, y.1), x_label)?;
             } else {
                 panel(&area, p, x0..x1, y.0..y.1, x_label)?;
             }
@@ -115,7 +115,8 @@ where
         .build_cartesian_2d(x, y)?;
     chart
         .configure_mesh()
-        .light_line_style(RGBColor(235, 235, 235))
+        .light_line_style(RGBColor(238, 238, 238))
+        .max_light_lines(4)
         .x_desc(x_label)
         .y_desc(p.y_label)
         .x_label_formatter(&|v| fmt_tick(*v))

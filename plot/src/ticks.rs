@@ -2,6 +2,9 @@
 //! the labels short (no `0.30000000000000004`) and log axes on whole decades, where plotters
 //! would otherwise find no tick inside a range narrower than a decade.
 
+use plotters::coord::combinators::{IntoLogRange, LogCoord};
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
+
 /// A tick value as a person writes it: at most 3 significant digits, no trailing zeros,
 /// powers of ten for the very small or large.
 pub fn fmt_tick(v: f64) -> String {
@@ -35,6 +38,47 @@ pub fn decades(lo: f64, hi: f64) -> (f64, f64) {
 /// tick would be lost, so the range is widened by a millionth.
 pub fn log_axis(lo: f64, hi: f64) -> std::ops::Range<f64> {
     lo * (1.0 - 1e-6)..hi * (1.0 + 1e-6)
+}
+
+/// A log axis labelled at 1-2-5 inside short ranges (up to two decades) and at the decades
+/// otherwise: plotters' own log axis labels either the decades alone or every 1..9.
+pub struct LogAxis(LogCoord<f64>);
+
+impl LogAxis {
+    /// Over whole decades from `lo` to `hi` (see [`decades`], [`log_axis`]).
+    pub fn new(lo: f64, hi: f64) -> Self {
+        let (lo, hi) = decades(lo, hi);
+        Self(log_axis(lo, hi).log_scale().into())
+    }
+}
+
+impl Ranged for LogAxis {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, v: &f64, limit: (i32, i32)) -> i32 {
+        self.0.map(v, limit)
+    }
+
+    fn key_points<H: KeyPointHint>(&self, _hint: H) -> Vec<f64> {
+        let r = self.0.range();
+        let span = (r.end / r.start).log10();
+        let steps: &[f64] = if span <= 2.01 {
+            &[1.0, 2.0, 5.0]
+        } else {
+            &[1.0]
+        };
+        let first = r.start.log10().round() as i32;
+        let last = r.end.log10().round() as i32;
+        (first..=last)
+            .flat_map(|e| steps.iter().map(move |m| m * 10f64.powi(e)))
+            .filter(|v| (r.start..=r.end).contains(v))
+            .collect()
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.0.range()
+    }
 }
 
 /// Finite min and max of `v`, widened a little (and when equal or absent) so nothing sits on
@@ -94,12 +138,27 @@ mod tests {
 
     #[test]
     fn log_axes_tick_both_end_decades() {
-        use plotters::coord::combinators::{IntoLogRange, LogCoord};
-        use plotters::coord::ranged1d::Ranged;
         let (lo, hi) = decades(0.013, 0.4);
         let axis: LogCoord<f64> = log_axis(lo, hi).log_scale().into();
         let ticks: Vec<String> = axis.key_points(5).iter().map(|v| fmt_tick(*v)).collect();
         assert_eq!(ticks, ["0.01", "0.1", "1"]);
+    }
+
+    #[test]
+    fn short_log_axes_tick_at_one_two_five() {
+        let ticks = |lo, hi| -> Vec<String> {
+            let axis = LogAxis::new(lo, hi);
+            axis.key_points(10).iter().map(|v| fmt_tick(*v)).collect()
+        };
+        assert_eq!(ticks(0.12, 0.9), ["0.1", "0.2", "0.5", "1"]);
+        assert_eq!(
+            ticks(0.013, 0.4),
+            ["0.01", "0.02", "0.05", "0.1", "0.2", "0.5", "1"]
+        );
+        assert_eq!(
+            ticks(2.0, 3e4),
+            ["1", "10", "100", "1000", "10000", "100000"]
+        );
     }
 
     #[test]

@@ -57,6 +57,7 @@ pub fn lap_trace(
         chart
             .configure_mesh()
             .light_line_style(RGBColor(240, 240, 240))
+            .max_light_lines(4)
             .x_desc("x (m)")
             .y_desc("y (m)")
             .x_label_formatter(&|v| fmt_tick(*v))
