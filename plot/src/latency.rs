@@ -14,6 +14,10 @@ const ROW_HEIGHT: u32 = 240;
 /// Each bin is a tenth of a decade wide and named by its upper bound (`LatencyStats`).
 const BIN_RATIO: f64 = 1.258_925_411_794_167_2; // 10^0.1
 
+/// The count axis starts below 1 so that a bin of one sample (the tail that matters) shows as
+/// a bar, not a hairline.
+const FLOOR: f64 = 0.4;
+
 /// Percentiles marked on each row, with their line colours.
 const MARKS: [(f64, &str, [u8; 3]); 3] = [
     (0.5, "p50", [20, 150, 60]),
@@ -53,7 +57,7 @@ pub fn latency_histograms(path: &Path, series: &[(&str, &[[f64; 2]])]) -> Result
                 .y_label_area_size(70)
                 .build_cartesian_2d(
                     (x0..x1).log_scale(),
-                    log_axis(0.8, decades(1.0, peak).1).log_scale(),
+                    log_axis(FLOOR, decades(1.0, peak).1).log_scale(),
                 )?;
             chart
                 .configure_mesh()
@@ -70,7 +74,7 @@ pub fn latency_histograms(path: &Path, series: &[(&str, &[[f64; 2]])]) -> Result
                 .draw()?;
             chart.draw_series(bins.iter().filter(|b| b[1] > 0.0).map(|b| {
                 Rectangle::new(
-                    [(b[0] / BIN_RATIO, 0.8), (b[0], b[1])],
+                    [(b[0] / BIN_RATIO, FLOOR), (b[0], b[1])],
                     colour(BLUE).filled(),
                 )
             }))?;
@@ -79,7 +83,7 @@ pub fn latency_histograms(path: &Path, series: &[(&str, &[[f64; 2]])]) -> Result
                 let Some(at) = percentile(bins, q) else {
                     continue;
                 };
-                let line = [(at, 0.8), (at, peak * 1.5)];
+                let line = [(at, FLOOR), (at, peak * 1.5)];
                 chart.draw_series(DashedLineSeries::new(line, 6, 4, colour(c).stroke_width(2)))?;
                 entries.push((
                     format!("{label} ≤ {}", fmt_us(at)),
