@@ -1,9 +1,9 @@
-//! The paper's Figs 3-7 as one grayscale PNG strip: a column per chosen frame; rows: original
+//! The paper's Figs 3-7 as one PNG strip of grayscale cells: a column per chosen frame; rows: original
 //! frame, predicted frame, then the first generative unit's output h of each layer, with row
 //! and frame labels.
 
 use crate::model::{ModelError, MtaPredNet};
-use mtanet_canvas::glyph_pixels;
+use mtanet_plot::Cell;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tch::{Kind, Tensor};
@@ -12,10 +12,6 @@ use tch::{Kind, Tensor};
 pub const DEFAULT_FRAMES: [usize; 5] = [1, 10, 50, 100, 130];
 /// Each pixel of the input image becomes SCALE x SCALE; deeper layers are stretched to match.
 const SCALE: usize = 8;
-const GAP: usize = 3;
-/// Labels are font8x8 glyphs drawn at TEXT_SCALE (16 px characters).
-const TEXT_SCALE: usize = 2;
-const GLYPH: usize = 8 * TEXT_SCALE;
 
 /// What the strip shows.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -145,61 +141,27 @@ struct Strip<'a> {
 }
 
 impl Strip<'_> {
-    /// Draws the cells at the image's size x SCALE, separated by white gaps (smaller maps are
-    /// stretched, nearest), labels in black, and writes a grayscale PNG.
+    /// Draws the cells at the image's size x SCALE (smaller maps stretched, nearest) with their
+    /// labels, through the project's one PNG path.
     fn write(&self, path: &Path, (h, w): (usize, usize)) -> Result<(), FigureError> {
-        let (ch, cw) = (h * SCALE, w * SCALE);
-        let cols = self.rows.first().map_or(0, Vec::len);
-        let longest = self.row_labels.iter().map(String::len).max().unwrap_or(0);
-        let (left, top) = (longest * GLYPH + 2 * GAP, GLYPH + 2 * GAP);
-        let width = left + cols * cw + (cols + 1) * GAP;
-        let height = top + self.rows.len() * ch + (self.rows.len() + 1) * GAP;
-        let mut px = vec![255u8; width * height];
-        let cell_origin =
-            |r: usize, c: usize| (top + GAP + r * (ch + GAP), left + GAP + c * (cw + GAP));
-        for (r, row) in self.rows.iter().enumerate() {
-            for (c, cell) in row.iter().enumerate() {
-                let cell = cell.unsqueeze(0).unsqueeze(0).to_kind(Kind::Float);
-                let big = cell
-                    .upsample_nearest2d([ch as i64, cw as i64], None, None)
-                    .flatten(0, -1);
-                let vals = Vec::<f32>::try_from(big).map_err(|e| write_err(path, e))?;
-                let (y0, x0) = cell_origin(r, c);
-                for y in 0..ch {
-                    for x in 0..cw {
-                        px[(y0 + y) * width + x0 + x] =
-                            (vals[y * cw + x].clamp(0.0, 1.0) * 255.0).round() as u8;
-                    }
-                }
+        let mut cells = Vec::with_capacity(self.rows.len());
+        for row in self.rows {
+            let mut out = Vec::with_capacity(row.len());
+            for cell in row {
+                let size = cell.size();
+                let values = Vec::<f32>::try_from(cell.to_kind(Kind::Float).flatten(0, -1))
+                    .map_err(|e| write_err(path, e))?;
+                out.push(Cell {
+                    width: size[1] as usize,
+                    height: size[0] as usize,
+                    values,
+                });
             }
+            cells.push(out);
         }
-        for (r, label) in self.row_labels.iter().enumerate() {
-            let (y0, _) = cell_origin(r, 0);
-            draw_text(&mut px, width, (y0 + (ch - GLYPH) / 2, GAP), label);
-        }
-        for (c, label) in self.col_labels.iter().enumerate() {
-            let (_, x0) = cell_origin(0, c);
-            draw_text(&mut px, width, (GAP, x0), label);
-        }
-        let file = std::fs::File::create(path).map_err(|e| write_err(path, e))?;
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);
-        enc.set_color(png::ColorType::Grayscale);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc.write_header().map_err(|e| write_err(path, e))?;
-        writer
-            .write_image_data(&px)
-            .map_err(|e| write_err(path, e))?;
-        writer.finish().map_err(|e| write_err(path, e))
-    }
-}
-
-/// Black ASCII text with its top-left corner at `(y, x)`.
-fn draw_text(px: &mut [u8], width: usize, (y, x): (usize, usize), text: &str) {
-    for (dx, dy) in glyph_pixels(text, TEXT_SCALE) {
-        let (py, pxx) = (y + dy, x + dx);
-        if let Some(p) = px.get_mut(py * width + pxx).filter(|_| pxx < width) {
-            *p = 0;
-        }
+        let cell = ((w * SCALE) as u32, (h * SCALE) as u32);
+        mtanet_plot::image_grid(path, &cells, self.row_labels, self.col_labels, cell)
+            .map_err(|e| write_err(path, e))
     }
 }
 

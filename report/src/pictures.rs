@@ -4,78 +4,52 @@
 use std::path::Path;
 
 use anyhow::Context;
-use mtanet_canvas::{BLACK, Canvas, GREY, Rgb};
+use mtanet_plot::{BLUE, GREEN, ORANGE, PURPLE, Path2d, RED, Rgb};
 use mtanet_summaries::predictor::Summary as PredictorSummary;
 use mtanet_summaries::simulator::Summary as SimulatorSummary;
 
 use crate::report::read_json;
 
-fn colour(source: &str) -> Rgb {
-    match source {
-        "active_inference" => [0, 110, 220],
-        "exploration" => [240, 150, 0],
-        "fallback" => [220, 0, 0],
-        "teacher" => [140, 0, 160],
-        _ => [0, 160, 60],
-    }
-}
+/// The drivers as `trace.csv` names them, their legend names and colours.
+const DRIVERS: [(&str, &str, Rgb); 5] = [
+    ("reactive", "reactive rule", GREEN),
+    ("exploration", "exploration", ORANGE),
+    ("active_inference", "active inference", BLUE),
+    ("fallback", "fallback", RED),
+    ("teacher", "teacher", PURPLE),
+];
 
 /// The car's path over the track, coloured by who drove.
 pub(crate) fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(dir.join("trace.csv")).context("reading trace.csv")?;
-    let pts: Vec<(f64, f64, String)> = text
-        .lines()
-        .skip(1)
-        .filter_map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            Some((
-                f.get(2)?.parse().ok()?,
-                f.get(3)?.parse().ok()?,
-                f.get(5)?.to_string(),
-            ))
+    let mut paths: Vec<Path2d> = DRIVERS
+        .iter()
+        .map(|&(_, name, colour)| Path2d {
+            name,
+            colour,
+            points: Vec::new(),
         })
         .collect();
+    for l in text.lines().skip(1) {
+        let f: Vec<&str> = l.split(',').collect();
+        let (Some(x), Some(y), Some(source)) = (f.get(2), f.get(3), f.get(5)) else {
+            continue;
+        };
+        let (Ok(x), Ok(y)) = (x.parse(), y.parse()) else {
+            continue;
+        };
+        // An unknown source is drawn as the reactive rule's, as before.
+        let k = DRIVERS.iter().position(|d| d.0 == *source).unwrap_or(0);
+        paths[k].points.push((x, y));
+    }
     let track = mtanet_track::Track::load(track).context("loading the run's track")?;
-    let line: Vec<[f64; 2]> = track.points().to_vec();
-    let all = line
-        .iter()
-        .map(|p| (p[0], p[1]))
-        .chain(pts.iter().map(|p| (p.0, p.1)));
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (x, y) in all {
-        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-    }
-    let (w, h, m) = (900usize, 700usize, 50.0);
-    let scale = ((w as f64 - 2.0 * m) / (x1 - x0).max(1e-3))
-        .min((h as f64 - 2.0 * m - 40.0) / (y1 - y0).max(1e-3));
-    let to = |x: f64, y: f64| {
-        (
-            (m + (x - x0) * scale) as i64,
-            (h as f64 - m - (y - y0) * scale) as i64,
-        )
-    };
-    let mut c = Canvas::new(w, h);
-    for k in 0..line.len() {
-        let (a, b) = (line[k], line[(k + 1) % line.len()]);
-        c.line(to(a[0], a[1]), to(b[0], b[1]), GREY);
-    }
-    for (x, y, s) in &pts {
-        let (px, py) = to(*x, *y);
-        c.dot(px, py, 1, colour(s));
-    }
-    let mut x = 10;
-    for s in [
-        "reactive",
-        "exploration",
-        "active_inference",
-        "fallback",
-        "teacher",
-    ] {
-        c.rect((x, 12), (x + 12, 24), colour(s));
-        c.text(x + 18, 12, s, 1, BLACK);
-        x += 30 + 8 * s.len() as i64;
-    }
-    c.write(&dir.join("lap_trace.png"))
+    mtanet_plot::lap_trace(
+        &dir.join("lap_trace.png"),
+        "The car's path over the track, by who drove",
+        track.points(),
+        &paths,
+    )?;
+    Ok(())
 }
 
 /// `latency.png` from the simulator's and the predictor's summaries in `dir`; false without a
@@ -106,44 +80,48 @@ pub(crate) fn latency_from(
     )
 }
 
-/// Log-x histograms, one row each.
+/// Latency histograms, one row per leg (`latency.png`, the soak's `soak.png`).
 pub fn latency_picture(path: &Path, series: &[(&str, &Vec<[f64; 2]>)]) -> anyhow::Result<()> {
-    let (w, row_h, left) = (900usize, 200usize, 60i64);
-    let mut c = Canvas::new(w, row_h * series.len() + 40);
-    // 1 us .. 1 s over the width.
-    let xs =
-        |us: f64| left + ((us.max(1.0).log10() / 6.0) * (w as f64 - left as f64 - 20.0)) as i64;
-    for (i, (name, hist)) in series.iter().enumerate() {
-        let top = 10 + (i * row_h) as i64;
-        let base = top + row_h as i64 - 40;
-        c.text(left, top, name, 2, BLACK);
-        c.line((left, base), (w as i64 - 20, base), BLACK);
-        let peak = hist.iter().map(|b| b[1]).fold(0.0, f64::max).max(1.0);
-        for b in hist.iter() {
-            // Each bin is a tenth of a decade wide, ending at its upper bound.
-            let lo = b[0] / 10f64.powf(0.1);
-            let hgt = ((b[1] / peak).sqrt() * (row_h as f64 - 70.0)) as i64;
-            c.rect(
-                (xs(lo) + 1, base - hgt),
-                (xs(b[0]).max(xs(lo) + 1), base),
-                [0, 110, 220],
-            );
+    let rows: Vec<(&str, &[[f64; 2]])> = series.iter().map(|(n, h)| (*n, h.as_slice())).collect();
+    mtanet_plot::latency_histograms(path, &rows)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn draws_the_lap_trace_and_the_latency_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let track = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tracks/oval.csv");
+        let mut trace = String::from("step,episode,x,y,lateral_m,source\n");
+        for k in 0..100 {
+            let a = k as f64 * 0.063;
+            let source = if k < 50 {
+                "reactive"
+            } else {
+                "active_inference"
+            };
+            trace.push_str(&format!(
+                "{k},0,{},{},0,{source}\n",
+                0.8 * a.cos(),
+                0.4 + 0.4 * a.sin()
+            ));
         }
-        for (k, lbl) in ["1us", "10us", "100us", "1ms", "10ms", "100ms", "1s"]
-            .iter()
-            .enumerate()
-        {
-            let x = xs(10f64.powi(k as i32));
-            c.line((x, base), (x, base + 4), BLACK);
-            c.text(x - 8, base + 8, lbl, 1, BLACK);
+        trace.push_str("torn,line\n");
+        std::fs::write(dir.path().join("trace.csv"), trace).unwrap();
+        lap_trace(dir.path(), &track).unwrap();
+        let bins: Vec<[f64; 2]> = (20..40)
+            .map(|k| [10f64.powf(k as f64 / 10.0), 9.0])
+            .collect();
+        latency_picture(&dir.path().join("latency.png"), &[("step", &bins)]).unwrap();
+        for f in ["lap_trace.png", "latency.png"] {
+            let file = std::fs::File::open(dir.path().join(f)).unwrap();
+            let info = png::Decoder::new(std::io::BufReader::new(file))
+                .read_info()
+                .unwrap();
+            assert!(info.info().width >= 900, "{f}");
         }
     }
-    c.text(
-        left,
-        (row_h * series.len()) as i64 + 10,
-        "count (sqrt scale) per 1/10 decade",
-        1,
-        BLACK,
-    );
-    c.write(path)
 }

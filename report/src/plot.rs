@@ -12,130 +12,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use mtanet_canvas::{BLACK, Canvas, GREY, Rgb};
+use mtanet_plot::{BLUE, GREEN, GREY, Panel, RED, Series};
 
 #[derive(Debug, clap::Args)]
 pub struct PlotArgs {
     /// The run folder (`runs/<timestamp>/` of `./ops/run_local.sh`).
     pub dir: PathBuf,
-}
-
-const BLUE: Rgb = [0, 110, 220];
-const RED: Rgb = [210, 40, 40];
-const GREEN: Rgb = [20, 150, 60];
-
-/// One panel of a chart: series of (x, y) points on shared axes.
-pub struct Panel<'a> {
-    pub title: &'a str,
-    pub series: Vec<(&'a str, Rgb, Vec<(f64, f64)>)>,
-    /// Horizontal reference lines (value, label).
-    pub refs: Vec<(f64, &'a str)>,
-    pub log_y: bool,
-    /// Fixed y range; none: the data's.
-    pub y_range: Option<(f64, f64)>,
-}
-
-fn fmt_tick(v: f64) -> String {
-    let a = v.abs();
-    if a == 0.0 {
-        "0".into()
-    } else if !(1e-3..1e5).contains(&a) {
-        format!("{v:.0e}")
-    } else if a >= 100.0 {
-        format!("{v:.0}")
-    } else if a >= 1.0 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.3}")
-    }
-}
-
-/// Draws the panels one above the other, sharing the x axis labelled `x_label`.
-pub fn chart(path: &Path, x_label: &str, panels: &[Panel]) -> anyhow::Result<()> {
-    let (w, ph, left, right) = (900i64, 220i64, 80i64, 20i64);
-    let mut c = Canvas::new(w as usize, (ph * panels.len() as i64 + 30) as usize);
-    let all_x = panels
-        .iter()
-        .flat_map(|p| p.series.iter().flat_map(|s| s.2.iter().map(|q| q.0)));
-    let (x0, x1) = bounds(all_x);
-    let xs = |x: f64| left + ((x - x0) / (x1 - x0) * (w - left - right) as f64) as i64;
-    for (i, p) in panels.iter().enumerate() {
-        let top = i as i64 * ph + 24;
-        let base = top + ph - 50;
-        let ty = |v: f64| if p.log_y { v.max(1e-12).log10() } else { v };
-        let (y0, y1) = p.y_range.unwrap_or_else(|| {
-            bounds(
-                p.series
-                    .iter()
-                    .flat_map(|s| s.2.iter().map(|q| q.1))
-                    .chain(p.refs.iter().map(|r| r.0))
-                    .filter(|v| v.is_finite() && (!p.log_y || *v > 0.0)),
-            )
-        });
-        let (y0, y1) = if p.log_y { (ty(y0), ty(y1)) } else { (y0, y1) };
-        let ys = |v: f64| base - ((ty(v) - y0) / (y1 - y0).max(1e-12) * (ph - 70) as f64) as i64;
-        c.text(left, top - 18, p.title, 2, BLACK);
-        c.line((left, base), (w - right, base), BLACK);
-        c.line((left, base), (left, top), BLACK);
-        for k in 0..=4 {
-            let t = y0 + (y1 - y0) * k as f64 / 4.0;
-            let v = if p.log_y { 10f64.powf(t) } else { t };
-            let y = ys(v);
-            c.line((left - 4, y), (left, y), BLACK);
-            c.text(2, y - 4, &fmt_tick(v), 1, BLACK);
-        }
-        for (v, label) in &p.refs {
-            let y = ys(*v);
-            for x in (left..w - right).step_by(6) {
-                c.line((x, y), (x + 2, y), GREY);
-            }
-            c.text(w - right - 8 * label.len() as i64, y - 10, label, 1, GREY);
-        }
-        let mut legend_x = left + 8 * p.title.len() as i64 * 2 + 24;
-        for (name, colour, pts) in &p.series {
-            let mut prev = None;
-            for &(x, y) in pts.iter().filter(|q| q.1.is_finite()) {
-                let here = (xs(x), ys(y).clamp(top, base));
-                match prev {
-                    Some(a) => c.line(a, here, *colour),
-                    None => c.dot(here.0, here.1, 1, *colour),
-                }
-                prev = Some(here);
-            }
-            c.rect((legend_x, top - 14), (legend_x + 10, top - 6), *colour);
-            c.text(legend_x + 14, top - 14, name, 1, BLACK);
-            legend_x += 14 + 8 * name.len() as i64 + 16;
-        }
-        for k in 0..=5 {
-            let x = x0 + (x1 - x0) * k as f64 / 5.0;
-            c.line((xs(x), base), (xs(x), base + 4), BLACK);
-            c.text(xs(x) - 12, base + 8, &fmt_tick(x), 1, BLACK);
-        }
-    }
-    c.text(
-        w / 2 - 4 * x_label.len() as i64,
-        ph * panels.len() as i64 + 10,
-        x_label,
-        1,
-        BLACK,
-    );
-    c.write(path)
-}
-
-/// Finite min and max, widened when they are equal (or absent).
-fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = v
-        .filter(|x| x.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-            (a.min(x), b.max(x))
-        });
-    if !lo.is_finite() {
-        (0.0, 1.0)
-    } else if hi - lo < 1e-12 {
-        (lo - 0.5 * lo.abs().max(1e-3), hi + 0.5 * hi.abs().max(1e-3))
-    } else {
-        (lo, hi)
-    }
 }
 
 /// `learning.png` from `learning.jsonl`; false when the run has no learning log.
@@ -159,42 +41,58 @@ pub fn learning(dir: &Path) -> anyhow::Result<bool> {
     let smooth = |v: Vec<(f64, f64)>| moving_mean(&v, 25);
     let panels = [
         Panel {
-            title: "loss (log)",
+            title: "Training loss",
+            y_label: "loss (log scale)",
             series: vec![
-                ("per update", GREY, xy(&|p| Some(p.loss))),
-                ("mean of 25", BLUE, smooth(xy(&|p| Some(p.loss)))),
+                series("per update", GREY, xy(&|p| Some(p.loss))),
+                series("mean of 25", BLUE, smooth(xy(&|p| Some(p.loss)))),
             ],
             refs: vec![],
             log_y: true,
             y_range: None,
         },
         Panel {
-            title: "gradient norm (log)",
+            title: "Gradient norm before clipping",
+            y_label: "L2 norm (log scale)",
             series: vec![
-                ("per update", GREY, xy(&|p| Some(p.grad_norm))),
-                ("mean of 25", RED, smooth(xy(&|p| Some(p.grad_norm)))),
+                series("per update", GREY, xy(&|p| Some(p.grad_norm))),
+                series("mean of 25", RED, smooth(xy(&|p| Some(p.grad_norm)))),
             ],
-            refs: vec![(1.0, "clip")],
+            refs: vec![(1.0, "clipped above 1")],
             log_y: true,
             y_range: None,
         },
         Panel {
-            title: "counterfactual probe",
-            series: vec![("rank correlation", GREEN, xy(&|p| p.probe))],
+            title: "Counterfactual probe of the weights",
+            y_label: "rank correlation",
+            series: vec![series("probe", GREEN, xy(&|p| p.probe))],
             refs: vec![(0.7, "min_probe 0.7")],
             log_y: false,
             y_range: Some((-0.2, 1.0)),
         },
         Panel {
-            title: "update time, ms",
-            series: vec![("mean of 25", BLUE, smooth(xy(&|p| Some(p.update_ms))))],
+            title: "Time per training update",
+            y_label: "ms",
+            series: vec![series(
+                "mean of 25",
+                BLUE,
+                smooth(xy(&|p| Some(p.update_ms))),
+            )],
             refs: vec![],
             log_y: false,
             y_range: None,
         },
     ];
-    chart(&dir.join("learning.png"), "training step", &panels)?;
+    mtanet_plot::lines_chart(&dir.join("learning.png"), "training update", &panels)?;
     Ok(true)
+}
+
+fn series(name: &str, colour: mtanet_plot::Rgb, points: Vec<(f64, f64)>) -> Series<'_> {
+    Series {
+        name,
+        colour,
+        points,
+    }
 }
 
 fn moving_mean(v: &[(f64, f64)], n: usize) -> Vec<(f64, f64)> {
@@ -237,28 +135,31 @@ pub fn model_error(dir: &Path) -> anyhow::Result<bool> {
     }
     let panels = [
         Panel {
-            title: "live model error / copy-last (log)",
-            series: vec![("model / copy-last", BLUE, ratio)],
-            refs: vec![(1.0, "copy-last"), (0.8, "trust 0.8")],
+            title: "Live model's next-frame error over copy-last-frame's",
+            y_label: "error ratio (log scale)",
+            series: vec![series("model / copy-last", BLUE, ratio)],
+            refs: vec![(1.0, "as good as copy-last"), (0.8, "trusted below 0.8")],
             log_y: true,
             y_range: None,
         },
         Panel {
-            title: "probe held by the predictor",
-            series: vec![("rank correlation", GREEN, probe)],
+            title: "Probe of the predictor's weights",
+            y_label: "rank correlation",
+            series: vec![series("probe", GREEN, probe)],
             refs: vec![(0.7, "min_probe 0.7")],
             log_y: false,
             y_range: Some((-0.2, 1.0)),
         },
         Panel {
-            title: "active inference drives (1) or not (0)",
-            series: vec![("driver", RED, ai)],
+            title: "Who drives",
+            y_label: "active inference (1) or not (0)",
+            series: vec![series("active inference", RED, ai)],
             refs: vec![],
             log_y: false,
             y_range: Some((-0.1, 1.1)),
         },
     ];
-    chart(&dir.join("model_error.png"), "simulated seconds", &panels)?;
+    mtanet_plot::lines_chart(&dir.join("model_error.png"), "simulated time (s)", &panels)?;
     Ok(true)
 }
 
@@ -288,14 +189,15 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    fn pixels(path: &Path, colour: Rgb) -> usize {
+    /// Pixels of `colour` (give or take antialiasing).
+    fn pixels(path: &Path, colour: mtanet_plot::Rgb) -> usize {
         let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
         let mut r = dec.read_info().unwrap();
         let mut buf = vec![0; r.output_buffer_size().unwrap()];
         let info = r.next_frame(&mut buf).unwrap();
         buf[..info.buffer_size()]
             .chunks(3)
-            .filter(|p| *p == colour)
+            .filter(|p| (0..3).all(|i| p[i].abs_diff(colour[i]) <= 40))
             .count()
     }
 
