@@ -64,8 +64,8 @@ fn type_names_are_stable_and_distinct() {
             "mtanet::GroundTruth/v1",
             "mtanet::Command/v2",
             "mtanet::ReplayChunk/v2",
-            "mtanet::WeightsHeader/v2",
-            "mtanet::TrainerStatus/v1",
+            "mtanet::WeightsHeader/v3",
+            "mtanet::TrainerStatus/v2",
         ]
     );
 }

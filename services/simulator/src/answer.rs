@@ -77,8 +77,16 @@ impl Answers {
             && self.lockstep
             && !shutdown.requested()
             && ports.commands.publishers() > 0
-            && node.try_cleanup_dead_nodes().cleanups == 0
         {
+            let cleaned = node.try_cleanup_dead_nodes().cleanups;
+            if cleaned > 0 {
+                summary.dead_nodes_cleaned += cleaned;
+                tracing::warn!(
+                    cleaned,
+                    "predictor stopped answering: removed dead nodes; the teacher drives until one connects"
+                );
+                break;
+            }
             answer = await_command(ports, frame.step, wait, shutdown, stale)?;
         }
         if let Some((c, received_ns)) = answer {

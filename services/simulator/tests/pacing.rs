@@ -40,6 +40,8 @@ fn the_simulator_waits_for_the_trainers_updates_and_runs_free_without_it() {
                     s.session_updates = updates;
                     s.updates = updates;
                     s.training = 1;
+                    // No weights schedule: this test is about the pace on updates alone.
+                    s.next_install_step = u64::MAX;
                     s.stamp_ns = stamp::monotonic_ns();
                 })
                 .unwrap();

@@ -32,9 +32,10 @@ impl Chunk {
     }
 }
 
-/// Chunks held beyond the capacity, so that an update of lockstep learning whose horizon lags
-/// the newest chunks still sees the same `capacity` chunks before it.
-const LOOKAHEAD_CHUNKS: usize = 1024;
+/// Chunks held beyond the capacity (this share of it), so that an update of lockstep learning
+/// whose horizon lags the newest chunks (by ~70 with the defaults) still sees the same
+/// `capacity` chunks before it.
+const LOOKAHEAD_SHARE: usize = 4;
 
 pub struct ReplayBuffer {
     chunks: VecDeque<Chunk>,
@@ -66,7 +67,7 @@ impl ReplayBuffer {
     /// oldest chunks allocates nothing, so the trainer's memory stays flat through a long run.
     pub fn new(capacity: usize) -> Self {
         let capacity = capacity.max(1);
-        let slots = capacity + LOOKAHEAD_CHUNKS;
+        let slots = capacity + capacity / LOOKAHEAD_SHARE;
         Self {
             chunks: VecDeque::with_capacity(slots),
             capacity,
