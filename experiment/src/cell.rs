@@ -38,6 +38,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
         out: cell.dir.join("learn"),
         config: &config,
         checkpoint: None,
+        namespace: format!("{}r0", cell.namespace),
     };
     let in_run = |run: &Run, r: anyhow::Result<Metrics>| {
         r.map_err(|error| CellError {
@@ -48,7 +49,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
     let metrics = in_run(&learn, learn_run(&learn, heldout, live, slot))?;
     let mut rows = vec![row(Phase::Learn, &key.learn_track, metrics)];
     let model = learn.out.join("model.safetensors");
-    for track in &key.eval_tracks {
+    for (k, track) in key.eval_tracks.iter().enumerate() {
         let eval = Run {
             label: format!("{} eval {}", cell.label(), track.display()),
             track,
@@ -56,6 +57,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
             out: cell.dir.join(format!("eval-{}", track_slug(track))),
             config: &config,
             checkpoint: Some(&model),
+            namespace: format!("{}r{}", cell.namespace, k + 1),
         };
         let m = up(&eval, live, slot).and_then(|()| Metrics::of_run(&eval.out));
         rows.push(row(Phase::Eval, track, in_run(&eval, m)?));

@@ -41,6 +41,10 @@ pub struct ExperimentArgs {
     /// Check the experiment and every variant's config, print what would run, run nothing.
     #[arg(long)]
     pub check: bool,
+    /// Prefix of the runs' iceoryx2 namespaces (at most 24 letters, digits, '-' or '_'; each
+    /// run adds `c<cell>r<run>`); default: one no other stack uses.
+    #[arg(long)]
+    pub namespace: Option<String>,
 }
 
 pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
@@ -55,7 +59,18 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
             ))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let cells = matrix::cells(&spec, &args.out, &configs)?;
+    let prefix = match args.namespace {
+        Some(p)
+            if p.len() <= 24
+                && p.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_".contains(c)) =>
+        {
+            p
+        }
+        Some(p) => bail!("--namespace {p:?}: use at most 24 letters, digits, '-' or '_'"),
+        None => mtanet_launch::stack::unique_namespace("exp"),
+    };
+    let cells = matrix::cells(&spec, &args.out, &configs, &prefix)?;
     let states = cells
         .iter()
         .map(|c| c.state())
@@ -107,7 +122,11 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
     }
     for (i, out) in outcomes {
         match out {
-            Ok(r) => (records[i], failures[i]) = (Some(r), None),
+            // As a later invocation will read it (JSON floats may differ in the last bit).
+            Ok(_) => {
+                let r = mtanet_files::read_json(&cells[i].record_path())?;
+                (records[i], failures[i]) = (Some(r), None)
+            }
             // A run stopped by our own SIGTERM is not a failure: the cell runs next time.
             Err(_) if shutdown.requested() => failures[i] = None,
             Err(e) => {

@@ -74,6 +74,8 @@ pub struct Failure {
 pub struct Cell {
     pub key: CellKey,
     pub dir: PathBuf,
+    /// Its runs' iceoryx2 namespaces start with this (`<prefix>c<index>`; each run adds `r<k>`).
+    pub namespace: String,
     /// The cell's stack config.
     pub config: toml::Table,
 }
@@ -104,6 +106,7 @@ impl Cell {
                 config: toml::to_string(&config)?,
             },
             dir: out.join(variant).join(seed.to_string()),
+            namespace: String::new(),
             config,
         })
     }
@@ -178,12 +181,15 @@ pub fn cells(
     spec: &Spec,
     out: &Path,
     configs: &[(String, toml::Table)],
+    namespace: &str,
 ) -> anyhow::Result<Vec<Cell>> {
     let mut cells = Vec::new();
     for &seed in &spec.seeds {
         for (name, table) in configs {
             let config = crate::config::cell(table, seed)?;
-            cells.push(Cell::new(spec, out, name, seed, config)?);
+            let mut cell = Cell::new(spec, out, name, seed, config)?;
+            cell.namespace = format!("{namespace}c{}", cells.len());
+            cells.push(cell);
         }
     }
     Ok(cells)
@@ -209,9 +215,10 @@ mod tests {
             ("a".into(), toml::Table::new()),
             ("b".into(), toml::Table::new()),
         ];
-        let cells = cells(&s, dir.path(), &configs).unwrap();
+        let cells = cells(&s, dir.path(), &configs, "t").unwrap();
         let labels: Vec<String> = cells.iter().map(Cell::label).collect();
         assert_eq!(labels, ["a/0", "b/0", "a/1", "b/1"]);
+        assert_eq!(cells[3].namespace, "tc3");
         let c = &cells[0];
         assert!(matches!(c.state().unwrap(), State::Todo));
         c.reset().unwrap();

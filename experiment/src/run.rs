@@ -58,6 +58,8 @@ pub struct Run<'a> {
     pub config: &'a Path,
     /// Evaluation: drive from this checkpoint with no learning.
     pub checkpoint: Option<&'a Path>,
+    /// The run's own iceoryx2 namespace.
+    pub namespace: String,
 }
 
 impl Run<'_> {
@@ -73,7 +75,7 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
     let log = run.log();
     let file =
         std::fs::File::create(&log).with_context(|| format!("creating {}", log.display()))?;
-    let ns = mtanet_launch::stack::unique_namespace("exp");
+    let ns = &run.namespace;
     let mut cmd = Command::new(mtanet_launch::stack::bin_dir().join("mta"));
     cmd.arg("up")
         .arg("--lockstep")
@@ -86,7 +88,7 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
         .arg("--config")
         .arg(run.config)
         .arg("--namespace")
-        .arg(&ns);
+        .arg(ns);
     if let Some(ck) = run.checkpoint {
         cmd.arg("--checkpoint").arg(ck).arg("--no-learning");
     }
@@ -104,7 +106,7 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
     live.lock()[slot] = None;
     let status = child.wait().context("waiting for mta up")?;
     waited?;
-    mtanet_launch::stack::remove_namespace_files(&ns);
+    mtanet_launch::stack::remove_namespace_files(ns);
     if !status.success() {
         bail!("mta up failed ({status}); see {}", log.display());
     }

@@ -130,13 +130,21 @@ impl Spec {
         if self.seeds.iter().collect::<BTreeSet<_>>().len() != self.seeds.len() {
             return Err(bad("seeds", format!("{:?} repeats a seed", self.seeds)));
         }
-        if !(self.learn_sim_seconds > 0.0 && self.learn_sim_seconds.is_finite()) {
+        // NaN fails every comparison: ask for what is wanted, never negate a comparison.
+        let at_least = |v: f64, min: f64| v.is_finite() && v >= min;
+        if !at_least(self.learn_sim_seconds, 0.02) {
             let v = self.learn_sim_seconds;
-            return Err(bad("learn_sim_seconds", format!("= {v}: must be > 0")));
+            return Err(bad(
+                "learn_sim_seconds",
+                format!("= {v}: at least one step (0.02 s)"),
+            ));
         }
-        if !self.eval_tracks.is_empty() && !(self.eval_sim_seconds > 0.0) {
+        if !self.eval_tracks.is_empty() && !at_least(self.eval_sim_seconds, 0.02) {
             let v = self.eval_sim_seconds;
-            return Err(bad("eval_sim_seconds", format!("= {v}: must be > 0")));
+            return Err(bad(
+                "eval_sim_seconds",
+                format!("= {v}: at least one step (0.02 s)"),
+            ));
         }
         if self.variants.is_empty() {
             return Err(bad("[[variant]]", "none: give at least one".into()));
@@ -183,7 +191,7 @@ impl Spec {
             );
             return Err(bad("[bootstrap]", m));
         }
-        if !(self.heldout.sim_seconds >= 10.0) {
+        if !at_least(self.heldout.sim_seconds, 10.0) {
             let m = format!("= {}: at least 10 s", self.heldout.sim_seconds);
             return Err(bad("heldout.sim_seconds", m));
         }
