@@ -56,7 +56,7 @@ pub fn run(
         loop {
             match rx.recv_timeout(Duration::from_millis(500)) {
                 Ok((i, out)) => {
-                    report(&bar, &cells[i], &out);
+                    report(&bar, &cells[i], &out, shutdown.requested());
                     bar.inc(1);
                     outcomes.push((i, out));
                 }
@@ -81,10 +81,14 @@ fn next(queue: &Mutex<VecDeque<usize>>) -> Option<usize> {
 }
 
 /// One line per finished cell, above the bar.
-fn report(bar: &ProgressBar, cell: &Cell, out: &Outcome) {
+fn report(bar: &ProgressBar, cell: &Cell, out: &Outcome, stopping: bool) {
     bar.suspend(|| match out {
         Ok(rec) => {
             tracing::info!(cell = %cell.label(), wall_s = rec.wall_seconds.round(), "cell done")
+        }
+        // Stopped by us: not a failure, it runs again next time.
+        Err(e) if stopping => {
+            tracing::warn!(cell = %cell.label(), "cell stopped: {:#}", e.error)
         }
         Err(e) => {
             let log = e.log.as_ref().map(|l| l.display().to_string());

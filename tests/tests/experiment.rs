@@ -10,17 +10,27 @@ use std::process::Command;
 use mtanet_experiment::metrics::NAMES;
 use mtanet_system_tests::{bin, here, unique_namespace};
 
-fn experiment(out: &Path, ns: &str, log: &Path) -> String {
+/// Runs `mta experiment FILE` from the repository root; its success and its output.
+fn run(file: &Path, out: &Path, ns: &str, log: &Path) -> (bool, String) {
     let status = Command::new(bin("mta"))
         .current_dir(here().join(".."))
-        .args(["experiment", "experiments/smoke.toml", "--namespace", ns])
+        .arg("experiment")
+        .arg(file)
+        .args(["--namespace", ns])
         .arg("--out")
         .arg(out)
         .stderr(std::fs::File::create(log).unwrap())
         .status()
         .expect("starting mta experiment");
-    let text = std::fs::read_to_string(log).unwrap_or_default();
-    assert!(status.success(), "mta experiment failed: {status}\n{text}");
+    (
+        status.success(),
+        std::fs::read_to_string(log).unwrap_or_default(),
+    )
+}
+
+fn experiment(out: &Path, ns: &str, log: &Path) -> String {
+    let (ok, text) = run(Path::new("experiments/smoke.toml"), out, ns, log);
+    assert!(ok, "mta experiment failed\n{text}");
     text
 }
 
@@ -116,5 +126,42 @@ fn the_smoke_experiment_runs_every_cell_summarises_and_resumes() {
     assert_eq!(
         std::fs::read_to_string(out.join("results.csv")).unwrap(),
         csv
+    );
+}
+
+/// A cell whose learn run leaves no checkpoint (3 s: the trainer never starts) fails with its
+/// log named, in failed.json and summary.md; the command fails; the next invocation retries it.
+#[test]
+fn a_failed_cell_is_reported_with_its_log_and_retried() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("fails.toml");
+    std::fs::write(
+        &file,
+        "name = \"fails\"\nseeds = [0]\nlearn_track = \"scenes/tracks/oval.csv\"\n\
+         learn_sim_seconds = 3\neval_tracks = [\"generated:101\"]\neval_sim_seconds = 2\n\
+         [heldout]\nsim_seconds = 10\n[[variant]]\nname = \"paper\"\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let ns = unique_namespace("xf");
+    let (ok, log) = run(&file, &out, &ns, &dir.path().join("first.log"));
+    assert!(!ok, "a failed cell fails the command\n{log}");
+    let failure = out.join("paper/0/failed.json");
+    let text =
+        std::fs::read_to_string(&failure).unwrap_or_else(|_| panic!("no failed.json\n{log}"));
+    assert!(
+        text.contains("no model.safetensors") && text.contains("learn.log"),
+        "{text}"
+    );
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(
+        md.contains("## Failed cells") && md.contains("`paper/0`"),
+        "{md}"
+    );
+    assert!(!out.join("paper/0/cell.json").exists());
+    let (ok, log) = run(&file, &out, &ns, &dir.path().join("second.log"));
+    assert!(
+        !ok && log.contains("0 finished, 1 to run"),
+        "retried:\n{log}"
     );
 }
