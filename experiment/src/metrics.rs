@@ -46,15 +46,15 @@ pub const NAMES: [(&str, &str); 10] = [
     ),
     (
         "lateral_reactive_m",
-        "mean |lateral error| (m) over the reactive rule's own steps",
+        "mean absolute lateral error (m) over the reactive rule's own steps",
     ),
     (
         "lateral_active_inference_m",
-        "mean |lateral error| (m) over active inference's steps",
+        "mean absolute lateral error (m) over active inference's steps",
     ),
     (
         "lateral_fallback_m",
-        "mean |lateral error| (m) over the fallback's steps",
+        "mean absolute lateral error (m) over the fallback's steps",
     ),
     (
         "heldout_over_copy_last",
