@@ -94,3 +94,31 @@ fn rows<const N: usize>(t: &tch::Tensor) -> anyhow::Result<Vec<[f32; N]>> {
         .map(|c| c.try_into().expect("chunks of N"))
         .collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The committed checkpoint (learnt on the oval, tests/data/README.md) predicts a drive on
+    /// a generated track better than copy-last; the recording is made once and reused.
+    #[test]
+    fn a_learnt_checkpoint_beats_copy_last_on_the_heldout_drive() {
+        let dir = tempfile::tempdir().unwrap();
+        let npz = dir.path().join("heldout.npz");
+        let spec = Heldout {
+            sim_seconds: 20.0,
+            ..Heldout::default()
+        };
+        ensure(&npz, &spec, &mtanet_scenes::SceneConfig::default()).unwrap();
+        let made = std::fs::metadata(&npz).unwrap().modified().unwrap();
+        ensure(&npz, &spec, &mtanet_scenes::SceneConfig::default()).unwrap();
+        assert_eq!(std::fs::metadata(&npz).unwrap().modified().unwrap(), made);
+        let ck =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/oval_lockstep.safetensors");
+        let r = ratio(&ck, &npz).unwrap();
+        assert!(
+            r.is_finite() && r > 0.0 && r < 1.0,
+            "model over copy-last {r}"
+        );
+    }
+}
