@@ -23,7 +23,16 @@ pub fn ensure(
     spec: &Heldout,
     scene: &mtanet_scenes::SceneConfig,
 ) -> anyhow::Result<()> {
+    // What the recording was made with: cells of one experiment must share one drive.
+    let made_with = path.with_extension("json");
     if path.exists() {
+        let old: Heldout = mtanet_files::read_json(&made_with)?;
+        anyhow::ensure!(
+            old == *spec,
+            "{} was recorded with [heldout] {old:?}, the experiment now asks for {spec:?}: \
+             use another --out",
+            path.display()
+        );
         return Ok(());
     }
     let steps = (spec.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as usize;
@@ -34,6 +43,8 @@ pub fn ensure(
     let images: Vec<f32> = frames.iter().flatten().copied().collect();
     let actions: Vec<f32> = applied.iter().flatten().copied().collect();
     let (h, w) = (mtanet_ipc::IMAGE_HEIGHT, mtanet_ipc::IMAGE_WIDTH);
+    // The description first: a crash before the recording leaves no recording to trust.
+    mtanet_files::write_json(&made_with, spec)?;
     mtanet_files::write_npz(
         path,
         &[
@@ -113,6 +124,12 @@ mod tests {
         let made = std::fs::metadata(&npz).unwrap().modified().unwrap();
         ensure(&npz, &spec, &mtanet_scenes::SceneConfig::default()).unwrap();
         assert_eq!(std::fs::metadata(&npz).unwrap().modified().unwrap(), made);
+        let other = Heldout {
+            seed: 1,
+            ..spec.clone()
+        };
+        let e = ensure(&npz, &other, &mtanet_scenes::SceneConfig::default()).unwrap_err();
+        assert!(e.to_string().contains("another --out"), "{e}");
         let ck =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/oval_lockstep.safetensors");
         let r = ratio(&ck, &npz).unwrap();

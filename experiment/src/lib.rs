@@ -59,17 +59,7 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
             ))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let prefix = match args.namespace {
-        Some(p)
-            if p.len() <= 24
-                && p.chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "-_".contains(c)) =>
-        {
-            p
-        }
-        Some(p) => bail!("--namespace {p:?}: use at most 24 letters, digits, '-' or '_'"),
-        None => mtanet_launch::stack::unique_namespace("exp"),
-    };
+    let prefix = namespace_prefix(args.namespace)?;
     let cells = matrix::cells(&spec, &args.out, &configs, &prefix)?;
     let states = cells
         .iter()
@@ -181,4 +171,19 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--namespace`, checked so that every run's namespace (`<prefix>c<cell>r<run>`) stays within
+/// iceoryx2's 32 characters; default: one no other stack uses.
+fn namespace_prefix(given: Option<String>) -> anyhow::Result<String> {
+    let ok = |p: &str| {
+        p.len() <= 24
+            && p.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_".contains(c))
+    };
+    match given {
+        Some(p) if ok(&p) => Ok(p),
+        Some(p) => bail!("--namespace {p:?}: use at most 24 letters, digits, '-' or '_'"),
+        None => Ok(mtanet_launch::stack::unique_namespace("exp")),
+    }
 }
