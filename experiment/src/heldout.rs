@@ -26,7 +26,12 @@ pub fn ensure(
     // What the recording was made with: cells of one experiment must share one drive.
     let made_with = path.with_extension("json");
     if path.exists() {
-        let old: Heldout = mtanet_files::read_json(&made_with)?;
+        let old: Heldout = mtanet_files::read_json(&made_with).with_context(|| {
+            format!(
+                "{} has no record of how it was made: use another --out",
+                path.display()
+            )
+        })?;
         anyhow::ensure!(
             old == *spec,
             "{} was recorded with [heldout] {old:?}, the experiment now asks for {spec:?}: \
