@@ -55,18 +55,29 @@ pub fn effective_config(
     table.insert("simulator".into(), sim.into());
     let path = out.join("stack.toml");
     mtanet_files::write_bytes(&path, toml::to_string(&table)?.as_bytes())?;
-    // Every section, as the services will read it: a typo fails here, naming file and key.
-    let file = ConfigFile::load(Some(&path))?;
+    check(&ConfigFile::load(Some(&path))?)?;
+    Ok((path, ck_dir))
+}
+
+/// Every section, as the services will read it: a typo fails here, naming file and key.
+/// `mta experiment` checks each variant's merged config with it before anything runs.
+pub fn check(file: &ConfigFile) -> anyhow::Result<()> {
     let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
     let predictor: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
     predictor
         .active_inference
         .validate()
         .map_err(|e| file.invalid("[predictor.active_inference]", e.to_string()))?;
-    let _: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
+    // The network's own rules (one tau per layer, ...) and the wire contract, which the trainer
+    // would otherwise only check once it starts.
+    let wire = (mtanet_ipc::IMAGE_HEIGHT, mtanet_ipc::IMAGE_WIDTH);
+    (trainer.model.validate())
+        .and_then(|()| trainer.model.check_wire(wire, mtanet_ipc::ACTION_DIM))
+        .map_err(|e| file.invalid("[trainer.model]", e.to_string()))?;
     let stack: StackConfig = file.section("stack")?;
     stack.validate().map_err(|e| file.invalid("[stack]", e))?;
-    Ok((path, ck_dir))
+    Ok(())
 }
 
 /// Checks the starting checkpoint and probes it on this run's track (the predictor trusts

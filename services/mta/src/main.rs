@@ -1,7 +1,7 @@
 //! `mta`: the operator CLI, a thin shell over the crates that do the work: `mtanet-launch`
 //! (up, systemd), `mtanet-soak`, `mtanet-observe` (status, top), `mtanet-recording` (record,
-//! replay), `mtanet-report` (report, plot) and `mtanet-offline` (train, figures, synth, probe,
-//! drive, track).
+//! replay), `mtanet-report` (report, plot), `mtanet-offline` (train, figures, synth, probe,
+//! drive, track) and `mtanet-experiment` (experiment).
 
 use clap::{Parser, Subcommand};
 use mtanet_launch::{systemd, up};
@@ -61,6 +61,9 @@ enum Cmd {
     Track(track::TrackArgs),
     /// Render the systemd units of the stack from its [stack] section.
     Systemd(systemd::SystemdArgs),
+    /// Run a matrix of variants x seeds (learn on one track, evaluate on others) and summarise
+    /// it over seeds: results.csv, summary.md, plots.
+    Experiment(mtanet_experiment::ExperimentArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -82,5 +85,6 @@ fn main() -> anyhow::Result<()> {
         Cmd::Drive(a) => evaluate::drive_cmd(a),
         Cmd::Track(a) => track::run(a),
         Cmd::Systemd(a) => systemd::run(a),
+        Cmd::Experiment(a) => mtanet_experiment::run(a),
     }
 }

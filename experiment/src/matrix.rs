@@ -1,0 +1,255 @@
+//! The matrix's cells (variant x seed), their folders and what is known of them on disk:
+//! `DIR/<variant>/<seed>/cell.json`, written atomically when the cell has finished, makes it
+//! done (an interrupted experiment resumes past it); `failed.json` names the error and the log
+//! of a cell that failed, and the next invocation runs it again from an empty folder.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+use serde::{Deserialize, Serialize};
+
+use crate::metrics::Metrics;
+use crate::spec::{Heldout, Spec};
+
+/// `learn`: from scratch on the learn track; `eval`: the learnt checkpoint, no learning.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    Learn,
+    Eval,
+}
+
+impl Phase {
+    pub const ALL: [Phase; 2] = [Phase::Learn, Phase::Eval];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Learn => "learn",
+            Phase::Eval => "eval",
+        }
+    }
+}
+
+/// One row of results.csv: one run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Row {
+    pub variant: String,
+    pub seed: u64,
+    pub phase: Phase,
+    pub track: String,
+    pub metrics: Metrics,
+}
+
+/// What a finished cell was run with: a cell.json that does not match the experiment as it is
+/// now is not silently reused.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellKey {
+    pub variant: String,
+    pub seed: u64,
+    pub learn_track: PathBuf,
+    pub learn_sim_seconds: f64,
+    pub eval_tracks: Vec<PathBuf>,
+    pub eval_sim_seconds: f64,
+    pub heldout: Heldout,
+    /// The cell's whole stack config, as TOML.
+    pub config: String,
+}
+
+/// `cell.json`: a finished cell.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CellRecord {
+    pub key: CellKey,
+    pub rows: Vec<Row>,
+    pub wall_seconds: f64,
+}
+
+/// `failed.json`: a cell that failed, to be run again.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Failure {
+    pub error: String,
+    /// The log of the run that failed (its `mta up` output; the processes' logs beside it).
+    pub log: Option<PathBuf>,
+}
+
+pub struct Cell {
+    pub key: CellKey,
+    pub dir: PathBuf,
+    /// Its runs' iceoryx2 namespaces start with this (`<prefix>c<index>`; each run adds `r<k>`).
+    pub namespace: String,
+    /// The cell's stack config.
+    pub config: toml::Table,
+}
+
+pub enum State {
+    Done(CellRecord),
+    Failed(Failure),
+    Todo,
+}
+
+impl Cell {
+    pub fn new(
+        spec: &Spec,
+        out: &Path,
+        variant: &str,
+        seed: u64,
+        config: toml::Table,
+    ) -> anyhow::Result<Self> {
+        Ok(Self {
+            key: CellKey {
+                variant: variant.into(),
+                seed,
+                learn_track: spec.learn_track.clone(),
+                learn_sim_seconds: spec.learn_sim_seconds,
+                eval_tracks: spec.eval_tracks.clone(),
+                eval_sim_seconds: spec.eval_sim_seconds,
+                heldout: spec.heldout.clone(),
+                config: toml::to_string(&config)?,
+            },
+            dir: out.join(variant).join(seed.to_string()),
+            namespace: String::new(),
+            config,
+        })
+    }
+
+    pub fn label(&self) -> String {
+        format!("{}/{}", self.key.variant, self.key.seed)
+    }
+
+    pub fn record_path(&self) -> PathBuf {
+        self.dir.join("cell.json")
+    }
+
+    pub fn failure_path(&self) -> PathBuf {
+        self.dir.join("failed.json")
+    }
+
+    /// What the folder holds. A finished cell run with another matrix or config is an error:
+    /// its results would be mixed with this experiment's.
+    pub fn state(&self) -> anyhow::Result<State> {
+        match mtanet_files::read_json::<CellRecord>(&self.record_path()) {
+            Ok(rec) if rec.key == self.key => return Ok(State::Done(rec)),
+            Ok(rec) => bail!(
+                "{} was run with another experiment ({}): use another --out, or remove the folder to run it again",
+                self.dir.display(),
+                differences(&rec.key, &self.key)
+            ),
+            Err(e) if e.is_not_found() => {}
+            Err(e) => return Err(e.into()),
+        }
+        match mtanet_files::read_json::<Failure>(&self.failure_path()) {
+            Ok(f) => Ok(State::Failed(f)),
+            Err(e) if e.is_not_found() => Ok(State::Todo),
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// Empties the folder for a fresh run: a trainer would resume from a failed attempt's
+    /// checkpoint, and its files would mix with the new ones.
+    pub fn reset(&self) -> anyhow::Result<()> {
+        if self.dir.exists() {
+            std::fs::remove_dir_all(&self.dir)?;
+        }
+        std::fs::create_dir_all(&self.dir)?;
+        mtanet_files::write_bytes(&self.dir.join("cell.toml"), self.key.config.as_bytes())?;
+        Ok(())
+    }
+}
+
+fn differences(a: &CellKey, b: &CellKey) -> String {
+    let mut d = Vec::new();
+    if a.learn_track != b.learn_track || a.learn_sim_seconds != b.learn_sim_seconds {
+        d.push("learn track or seconds");
+    }
+    if a.eval_tracks != b.eval_tracks || a.eval_sim_seconds != b.eval_sim_seconds {
+        d.push("eval tracks or seconds");
+    }
+    if a.heldout != b.heldout {
+        d.push("held-out drive");
+    }
+    if a.config != b.config {
+        d.push("stack config");
+    }
+    if d.is_empty() {
+        d.push("variant or seed");
+    }
+    d.join(", ") + " differ"
+}
+
+/// The cells in the order they run: seed by seed, every variant of a seed before the next
+/// seed, so an experiment stopped early still compares the variants.
+pub fn cells(
+    spec: &Spec,
+    out: &Path,
+    configs: &[(String, toml::Table)],
+    namespace: &str,
+) -> anyhow::Result<Vec<Cell>> {
+    let mut cells = Vec::new();
+    for &seed in &spec.seeds {
+        for (name, table) in configs {
+            let config = crate::config::cell(table, seed)?;
+            let mut cell = Cell::new(spec, out, name, seed, config)?;
+            cell.namespace = format!("{namespace}c{}", cells.len());
+            cells.push(cell);
+        }
+    }
+    Ok(cells)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> Spec {
+        toml::from_str(
+            "name = \"t\"\nseeds = [0, 1]\nlearn_track = \"generated:5\"\nlearn_sim_seconds = 20\n\
+             [[variant]]\nname = \"a\"\n[[variant]]\nname = \"b\"\n",
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_cell_is_todo_then_failed_then_done_and_another_config_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = spec();
+        let configs = vec![
+            ("a".into(), toml::Table::new()),
+            ("b".into(), toml::Table::new()),
+        ];
+        let cells = cells(&s, dir.path(), &configs, "t").unwrap();
+        let labels: Vec<String> = cells.iter().map(Cell::label).collect();
+        assert_eq!(labels, ["a/0", "b/0", "a/1", "b/1"]);
+        assert_eq!(cells[3].namespace, "tc3");
+        let c = &cells[0];
+        assert!(matches!(c.state().unwrap(), State::Todo));
+        c.reset().unwrap();
+        let failure = Failure {
+            error: "boom".into(),
+            log: None,
+        };
+        mtanet_files::write_json(&c.failure_path(), &failure).unwrap();
+        assert!(matches!(c.state().unwrap(), State::Failed(f) if f.error == "boom"));
+        c.reset().unwrap();
+        assert!(
+            matches!(c.state().unwrap(), State::Todo),
+            "reset clears the failure"
+        );
+        let rec = CellRecord {
+            key: c.key.clone(),
+            rows: vec![],
+            wall_seconds: 1.0,
+        };
+        mtanet_files::write_json(&c.record_path(), &rec).unwrap();
+        assert!(matches!(c.state().unwrap(), State::Done(_)));
+        let other: toml::Table = toml::from_str("[trainer]\nnice = 5\n").unwrap();
+        let changed = Cell::new(
+            &s,
+            dir.path(),
+            "a",
+            0,
+            crate::config::cell(&other, 0).unwrap(),
+        )
+        .unwrap();
+        let e = changed.state().err().expect("another config").to_string();
+        assert!(e.contains("stack config"), "{e}");
+    }
+}

@@ -1,0 +1,214 @@
+//! The figures of one run, from its folder: the typed `report.json` (`mta report`) and the
+//! simulator's `trace.csv` (`step,episode,x,y,lateral_m,source`, every n-th step), for the
+//! takeover time. The held-out next-frame error is the cell's (`heldout.rs`).
+
+use std::path::Path;
+
+use anyhow::Context;
+use mtanet_report::Report;
+use serde::{Deserialize, Serialize};
+
+/// Active inference must hold the wheel this share of...
+pub const TAKEOVER_SHARE: f64 = 0.9;
+/// ...this many simulated seconds from when it first drove.
+pub const TAKEOVER_WINDOW_S: f64 = 60.0;
+
+/// One run's metrics; `None` where the run has no such figure (no takeover, a driver that
+/// never drove, no trainer in an evaluation run).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    pub takeover_s: Option<f64>,
+    pub laps: Option<f64>,
+    pub laps_active_inference: Option<f64>,
+    pub fallbacks: Option<f64>,
+    pub lateral_reactive_m: Option<f64>,
+    pub lateral_active_inference_m: Option<f64>,
+    pub lateral_fallback_m: Option<f64>,
+    pub heldout_over_copy_last: Option<f64>,
+    pub probe: Option<f64>,
+    pub trainer_updates: Option<f64>,
+}
+
+/// The metric columns in results.csv order, with what each means (summary.md, plots).
+pub const NAMES: [(&str, &str); 10] = [
+    (
+        "takeover_s",
+        "simulated s until active inference first drives and then holds the wheel >= 90% of the next 60 s",
+    ),
+    ("laps", "laps completed (all drivers, all episodes)"),
+    (
+        "laps_active_inference",
+        "laps in which active inference decided every step",
+    ),
+    (
+        "fallbacks",
+        "times the line was lost under active inference and the rule took over",
+    ),
+    (
+        "lateral_reactive_m",
+        "mean absolute lateral error (m) over the reactive rule's own steps",
+    ),
+    (
+        "lateral_active_inference_m",
+        "mean absolute lateral error (m) over active inference's steps",
+    ),
+    (
+        "lateral_fallback_m",
+        "mean absolute lateral error (m) over the fallback's steps",
+    ),
+    (
+        "heldout_over_copy_last",
+        "the learnt checkpoint's next-frame MSE over copy-last on the fixed held-out drive (learn rows)",
+    ),
+    (
+        "probe",
+        "counterfactual probe (rank correlation): the trainer's last (learn), on the eval track (eval)",
+    ),
+    ("trainer_updates", "trainer updates in the run (learn rows)"),
+];
+
+impl Metrics {
+    /// The values in [`NAMES`] order.
+    pub fn values(&self) -> [Option<f64>; 10] {
+        [
+            self.takeover_s,
+            self.laps,
+            self.laps_active_inference,
+            self.fallbacks,
+            self.lateral_reactive_m,
+            self.lateral_active_inference_m,
+            self.lateral_fallback_m,
+            self.heldout_over_copy_last,
+            self.probe,
+            self.trainer_updates,
+        ]
+    }
+
+    /// A run folder's metrics (without the held-out error).
+    pub fn of_run(dir: &Path) -> anyhow::Result<Self> {
+        let r: Report = mtanet_files::read_json(&dir.join("report.json"))?;
+        let trace = std::fs::read_to_string(dir.join("trace.csv"))
+            .with_context(|| format!("reading {}", dir.join("trace.csv").display()))?;
+        let samples = parse_trace(&trace)
+            .with_context(|| format!("parsing {}", dir.join("trace.csv").display()))?;
+        Ok(Self {
+            takeover_s: takeover_s(&samples, r.steps, TAKEOVER_WINDOW_S, TAKEOVER_SHARE),
+            laps: Some(r.laps.completed as f64),
+            laps_active_inference: Some(r.laps.completed_under_active_inference as f64),
+            fallbacks: Some(r.control.fallbacks as f64),
+            lateral_reactive_m: r.lateral_error_m.reactive_mean,
+            lateral_active_inference_m: r.lateral_error_m.active_inference_mean,
+            lateral_fallback_m: r.lateral_error_m.fallback_mean,
+            heldout_over_copy_last: None,
+            probe: r.probe.rank_correlation,
+            trainer_updates: r.trainer.updates.map(|u| u as f64),
+        })
+    }
+}
+
+/// (step, active inference drove) per trace row.
+pub fn parse_trace(text: &str) -> anyhow::Result<Vec<(u64, bool)>> {
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or_default();
+    let cols: Vec<&str> = header.split(',').collect();
+    let col = |name: &str| {
+        cols.iter()
+            .position(|c| *c == name)
+            .with_context(|| format!("no column {name} in {header:?}"))
+    };
+    let (step, source) = (col("step")?, col("source")?);
+    let ai = mtanet_ipc::CommandSource::ActiveInference.name();
+    lines
+        .enumerate()
+        .filter(|(_, l)| !l.is_empty())
+        .map(|(i, l)| {
+            let f: Vec<&str> = l.split(',').collect();
+            let s = f.get(step).and_then(|s| s.parse().ok());
+            let src = f.get(source);
+            match (s, src) {
+                (Some(s), Some(src)) => Ok((s, *src == ai)),
+                _ => anyhow::bail!("line {}: {l:?}", i + 2),
+            }
+        })
+        .collect()
+}
+
+/// Simulated seconds until active inference first drives and then holds the wheel for at least
+/// `share` of the next `window_s`: the earliest start of an active-inference stretch whose
+/// window is so held. The window must lie within the run (`steps` control steps): a run too
+/// short to show the hold has no takeover.
+pub fn takeover_s(samples: &[(u64, bool)], steps: u64, window_s: f64, share: f64) -> Option<f64> {
+    let period = mtanet_ipc::CONTROL_PERIOD_S;
+    let window = (window_s / period).round() as u64;
+    // ai[i]: active-inference rows among the first i.
+    let mut ai = Vec::with_capacity(samples.len() + 1);
+    ai.push(0usize);
+    for s in samples {
+        ai.push(ai.last().copied().unwrap_or(0) + s.1 as usize);
+    }
+    let mut was_ai = false;
+    for (i, &(step, is_ai)) in samples.iter().enumerate() {
+        let onset = is_ai && !was_ai;
+        was_ai = is_ai;
+        if !onset {
+            continue;
+        }
+        if step + window > steps {
+            return None;
+        }
+        let end = i + samples[i..].partition_point(|s| s.0 < step + window);
+        let held = (ai[end] - ai[i]) as f64 / (end - i) as f64;
+        if held >= share {
+            return Some(step as f64 * period);
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trace every 5 steps (0.1 s) of `steps` steps where active inference drives in `ai`.
+    fn trace(steps: u64, ai: impl Fn(u64) -> bool) -> Vec<(u64, bool)> {
+        (0..steps).step_by(5).map(|s| (s, ai(s))).collect()
+    }
+
+    #[test]
+    fn takeover_is_the_first_onset_that_holds() {
+        // A 2 s try at 10 s, then from 100 s on for good: the try does not hold.
+        let t = trace(10_000, |s| (500..600).contains(&s) || s >= 5000);
+        assert_eq!(takeover_s(&t, 10_000, 60.0, 0.9), Some(100.0));
+        // Active inference from 50 s, with short fallbacks (5% of the time): it holds.
+        let t = trace(10_000, |s| s >= 2500 && s % 1000 >= 50);
+        assert_eq!(takeover_s(&t, 10_000, 60.0, 0.9), Some(50.0));
+        // Half the time only: never.
+        let t = trace(10_000, |s| s % 1000 < 500);
+        assert_eq!(takeover_s(&t, 10_000, 60.0, 0.9), None);
+    }
+
+    #[test]
+    fn a_run_too_short_to_show_the_hold_has_no_takeover() {
+        let t = trace(4000, |s| s >= 1500);
+        assert_eq!(takeover_s(&t, 4000, 60.0, 0.9), None, "58 s left of 60");
+        let t = trace(4500, |s| s >= 1500);
+        assert_eq!(
+            takeover_s(&t, 4500, 60.0, 0.9),
+            Some(30.0),
+            "exactly 60 s left"
+        );
+        assert_eq!(takeover_s(&[], 4500, 60.0, 0.9), None);
+    }
+
+    #[test]
+    fn the_trace_is_read_by_its_header() {
+        let text =
+            "step,episode,x,y,lateral_m,source\n0,0,0,0,0,reactive\n5,0,0,0,0,active_inference\n";
+        assert_eq!(parse_trace(text).unwrap(), vec![(0, false), (5, true)]);
+        assert!(
+            parse_trace("step,episode\n0,0\n").is_err(),
+            "no source column"
+        );
+        assert!(parse_trace("step,source\nx,reactive\n").is_err());
+    }
+}

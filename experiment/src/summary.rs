@@ -1,0 +1,296 @@
+//! `results.csv` (one row per run) and `summary.md` (per variant and phase the median and
+//! interquartile range over seeds of each metric; per pair of variants a bootstrap interval of
+//! the difference of medians), from the finished cells.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::matrix::{CellRecord, Failure, Phase, Row};
+use crate::metrics::NAMES;
+use crate::spec::Spec;
+use crate::stats::{Spread, bootstrap_median_difference};
+
+/// One value per seed of `variant` in `phase` for metric `m` (index into [`NAMES`]): the learn
+/// run's, or the mean over the seed's evaluation tracks that have one. Seeds without a value
+/// are left out.
+pub fn seed_values(records: &[CellRecord], variant: &str, phase: Phase, m: usize) -> Vec<f64> {
+    records
+        .iter()
+        .filter(|r| r.key.variant == variant)
+        .filter_map(|r| {
+            let v: Vec<f64> = (r.rows.iter())
+                .filter(|row| row.phase == phase)
+                .filter_map(|row| row.metrics.values()[m])
+                .collect();
+            (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+        })
+        .collect()
+}
+
+pub fn results_csv(path: &Path, records: &[CellRecord]) -> anyhow::Result<()> {
+    let mut out = String::from("variant,seed,phase,track");
+    for (name, _) in NAMES {
+        out.push(',');
+        out.push_str(name);
+    }
+    out.push('\n');
+    for row in records.iter().flat_map(|r| &r.rows) {
+        line(&mut out, row);
+    }
+    mtanet_files::write_bytes(path, out.as_bytes())?;
+    Ok(())
+}
+
+fn line(out: &mut String, row: &Row) {
+    let _ = write!(
+        out,
+        "{},{},{},{}",
+        row.variant,
+        row.seed,
+        row.phase.name(),
+        row.track
+    );
+    for v in row.metrics.values() {
+        out.push(',');
+        if let Some(v) = v {
+            let _ = write!(out, "{v}");
+        }
+    }
+    out.push('\n');
+}
+
+fn num(v: f64) -> String {
+    match v.abs() {
+        // Counts (laps, fallbacks, updates) and their medians stay whole.
+        a if v.fract() == 0.0 && a < 1e9 => format!("{v:.0}"),
+        a if a >= 100.0 => format!("{v:.0}"),
+        a if a >= 1.0 => format!("{v:.2}"),
+        _ => format!("{v:.3}"),
+    }
+}
+
+/// What summary.md is built from.
+pub struct Inputs<'a> {
+    pub spec: &'a Spec,
+    pub records: &'a [CellRecord],
+    /// Failed cells (label, what failed).
+    pub failures: &'a [(String, Failure)],
+    pub cells: usize,
+    pub base_config: &'a str,
+}
+
+pub fn summary_md(path: &Path, x: &Inputs) -> anyhow::Result<()> {
+    let (s, mut md) = (x.spec, String::new());
+    let tracks: Vec<String> = s
+        .eval_tracks
+        .iter()
+        .map(|t| format!("`{}`", t.display()))
+        .collect();
+    let _ = writeln!(md, "# Experiment `{}`\n", s.name);
+    if !s.description.is_empty() {
+        let _ = writeln!(md, "{}\n", s.description.trim());
+    }
+    let _ = writeln!(
+        md,
+        "- learn: from scratch in lockstep on `{}` for {} simulated s\n\
+         - eval: the learnt checkpoint with no learning on {} for {} simulated s each\n\
+         - seeds {:?}, each setting {}\n\
+         - base config `{}`; variants {}\n\
+         - held-out drive: `{}`, {} s, seed {} (`heldout.npz`)\n\
+         - cells: {} finished, {} failed, of {}; `results.csv` has one row per run",
+        s.learn_track.display(),
+        s.learn_sim_seconds,
+        if tracks.is_empty() {
+            "no track".into()
+        } else {
+            tracks.join(", ")
+        },
+        s.eval_sim_seconds,
+        s.seeds,
+        crate::config::SEED_KEYS.join(", "),
+        x.base_config,
+        s.variants
+            .iter()
+            .map(|v| format!("`{}`", v.name))
+            .collect::<Vec<_>>()
+            .join(", "),
+        s.heldout.track.display(),
+        s.heldout.sim_seconds,
+        s.heldout.seed,
+        x.records.len(),
+        x.failures.len(),
+        x.cells,
+    );
+    if !x.failures.is_empty() {
+        md.push_str("\n## Failed cells\n\n");
+        for (label, f) in x.failures {
+            let log = f.log.as_ref().map(|l| format!(" (log: `{}`)", l.display()));
+            let _ = writeln!(
+                md,
+                "- `{label}`: {}{}",
+                f.error.replace('\n', " "),
+                log.unwrap_or_default()
+            );
+        }
+    }
+    for phase in Phase::ALL {
+        spreads(&mut md, x, phase);
+    }
+    differences(&mut md, x);
+    md.push_str("\n## Metrics\n\n| metric | meaning |\n|---|---|\n");
+    for (name, meaning) in NAMES {
+        let _ = writeln!(md, "| `{name}` | {meaning} |");
+    }
+    mtanet_files::write_bytes(path, md.as_bytes())?;
+    Ok(())
+}
+
+fn spreads(md: &mut String, x: &Inputs, phase: Phase) {
+    let variants = &x.spec.variants;
+    let _ = writeln!(md, "\n## {}\n", phase.name());
+    md.push_str(match phase {
+        Phase::Learn => "Median [first quartile, third quartile] over seeds (n: seeds with a value).\n\n",
+        Phase::Eval => "Each seed's value is its mean over the evaluation tracks that have one; then \
+                        median [first quartile, third quartile] over seeds (n: seeds with a value).\n\n",
+    });
+    let _ = writeln!(md, "| metric | {} |", names(variants).join(" | "));
+    let _ = writeln!(md, "|---|{}", "---|".repeat(variants.len()));
+    for (m, (name, _)) in NAMES.iter().enumerate() {
+        let cells: Vec<String> = variants
+            .iter()
+            .map(
+                |v| match Spread::of(&seed_values(x.records, &v.name, phase, m)) {
+                    Some(s) => format!(
+                        "{} [{}, {}] (n {})",
+                        num(s.median),
+                        num(s.q1),
+                        num(s.q3),
+                        s.n
+                    ),
+                    None => "-".into(),
+                },
+            )
+            .collect();
+        let _ = writeln!(md, "| `{name}` | {} |", cells.join(" | "));
+    }
+}
+
+fn differences(md: &mut String, x: &Inputs) {
+    let (variants, b) = (&x.spec.variants, &x.spec.bootstrap);
+    if variants.len() < 2 {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Differences of medians\n\n`B - A`: median over seeds of B minus that of A, and its {:.0}% \
+         percentile-bootstrap interval ({} resamples, each drawing every variant's seeds with \
+         replacement; seed {}). `-`: fewer than two seeds with a value on either side. With a \
+         handful of seeds the interval is coarse: read it as a rough range, not a test.",
+        b.confidence * 100.0,
+        b.resamples,
+        b.seed
+    );
+    for (i, a) in variants.iter().enumerate() {
+        for v in &variants[i + 1..] {
+            let _ = writeln!(md, "\n### `{}` - `{}`\n", v.name, a.name);
+            md.push_str("| metric | learn | eval |\n|---|---|---|\n");
+            for (m, (name, _)) in NAMES.iter().enumerate() {
+                let cols: Vec<String> = Phase::ALL
+                    .iter()
+                    .map(|&p| {
+                        let (va, vb) = (
+                            seed_values(x.records, &a.name, p, m),
+                            seed_values(x.records, &v.name, p, m),
+                        );
+                        let d = crate::stats::median(&vb).zip(crate::stats::median(&va));
+                        let ci = bootstrap_median_difference(
+                            &vb,
+                            &va,
+                            b.resamples,
+                            b.confidence,
+                            b.seed,
+                        );
+                        match (d, ci) {
+                            (Some((mb, ma)), Some((lo, hi))) => {
+                                format!("{} [{}, {}]", num(mb - ma), num(lo), num(hi))
+                            }
+                            _ => "-".into(),
+                        }
+                    })
+                    .collect();
+                let _ = writeln!(md, "| `{name}` | {} |", cols.join(" | "));
+            }
+        }
+    }
+}
+
+fn names(variants: &[crate::spec::Variant]) -> Vec<String> {
+    variants.iter().map(|v| format!("`{}`", v.name)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matrix::CellKey;
+    use crate::metrics::Metrics;
+
+    fn record(variant: &str, seed: u64, learn_laps: f64, eval_laps: &[Option<f64>]) -> CellRecord {
+        let row = |phase, track: &str, laps| Row {
+            variant: variant.into(),
+            seed,
+            phase,
+            track: track.into(),
+            metrics: Metrics {
+                laps,
+                ..Default::default()
+            },
+        };
+        let mut rows = vec![row(Phase::Learn, "oval", Some(learn_laps))];
+        rows.extend(
+            eval_laps
+                .iter()
+                .enumerate()
+                .map(|(i, l)| row(Phase::Eval, &format!("g{i}"), *l)),
+        );
+        CellRecord {
+            key: CellKey {
+                variant: variant.into(),
+                seed,
+                learn_track: "oval".into(),
+                learn_sim_seconds: 1.0,
+                eval_tracks: vec![],
+                eval_sim_seconds: 1.0,
+                heldout: Default::default(),
+                config: String::new(),
+            },
+            rows,
+            wall_seconds: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_seed_is_its_learn_run_or_its_mean_over_eval_tracks() {
+        let laps = NAMES.iter().position(|n| n.0 == "laps").unwrap();
+        let recs = [
+            record("a", 0, 3.0, &[Some(1.0), Some(3.0)]),
+            record("a", 1, 5.0, &[None, Some(4.0)]),
+            record("b", 0, 9.0, &[None, None]),
+        ];
+        assert_eq!(seed_values(&recs, "a", Phase::Learn, laps), vec![3.0, 5.0]);
+        assert_eq!(seed_values(&recs, "a", Phase::Eval, laps), vec![2.0, 4.0]);
+        assert!(seed_values(&recs, "b", Phase::Eval, laps).is_empty());
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("r.csv");
+        results_csv(&csv, &recs).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        assert_eq!(text.lines().count(), 1 + 9);
+        assert!(
+            text.starts_with("variant,seed,phase,track,takeover_s,laps,"),
+            "{text}"
+        );
+        assert!(
+            text.contains("\na,1,eval,g0,,,"),
+            "a missing value is an empty field: {text}"
+        );
+    }
+}
