@@ -72,3 +72,22 @@ pub fn one_minute_soak(dir: &Path, config: &Path, extra: &[&str]) -> SoakReport 
     assert!(out.join("soak.png").exists(), "no soak.png\n{text}");
     mtanet_files::read_json(&out.join("soak.json")).expect("reading soak.json")
 }
+
+/// A stack config with a small network, so a test's trainer learns and publishes within
+/// seconds: training from `min_sequences` chunks, weights every `publish_every` updates.
+pub fn small_trainer(min_sequences: u32, publish_every: u32) -> String {
+    format!(
+        r#"
+[trainer]
+min_sequences = {min_sequences}
+publish_every_updates = {publish_every}
+[trainer.model]
+channels = [4, 4, 4]
+a_channels = [1, 4, 4]
+action_offset = [8.0, 8.0]
+action_scale = [5.0, 5.0]
+[trainer.train]
+batch_size = 4
+"#
+    )
+}

@@ -7,28 +7,17 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
 use mtanet_report::report::Report;
-use mtanet_system_tests::{bin, nodes, read_json, remove_namespace_files, unique_namespace};
-
-/// A small network publishing often (every 10 updates: 250 steps, more than the install lag),
-/// so 60 simulated seconds hold several weights versions.
-const CONFIG: &str = r#"
-[trainer]
-min_sequences = 16
-publish_every_updates = 10
-[trainer.model]
-channels = [4, 4, 4]
-a_channels = [1, 4, 4]
-action_offset = [8.0, 8.0]
-action_scale = [5.0, 5.0]
-[trainer.train]
-batch_size = 4
-"#;
+use mtanet_system_tests::{
+    bin, nodes, read_json, remove_namespace_files, small_trainer, unique_namespace,
+};
 
 fn learn(dir: &Path, name: &str) -> PathBuf {
     let out = dir.join(name);
     let ns = unique_namespace("det");
     let config = dir.join("stack.toml");
-    std::fs::write(&config, CONFIG).unwrap();
+    // Weights every 10 updates: 250 steps, more than the install lag, so 60 simulated seconds
+    // hold several versions.
+    std::fs::write(&config, small_trainer(16, 10)).unwrap();
     let log = dir.join(format!("{name}.log"));
     let status = Command::new(bin("mta"))
         .args([

@@ -11,34 +11,15 @@ use mtanet_predictor::service::Summary as PredictorSummary;
 use mtanet_system_tests::*;
 use mtanet_trainer::service::Summary as TrainerSummary;
 
-/// A small network and eager publishing, so a test sees weights within seconds.
-const FAST_TRAINER: &str = r#"
-[trainer]
-min_sequences = 4
-publish_every_updates = 2
-[trainer.model]
-channels = [4, 4, 4]
-a_channels = [1, 4, 4]
-action_offset = [8.0, 8.0]
-action_scale = [5.0, 5.0]
-[trainer.train]
-batch_size = 4
-"#;
-
-/// Writes `FAST_TRAINER` publishing every `publish_every` updates and keeping checkpoints in
-/// `dir/ck`; returns the config file and the checkpoint folder.
-fn checkpointing_config(dir: &Path, publish_every: u64) -> (PathBuf, PathBuf) {
+/// Writes a small trainer (eager: training from 4 chunks) publishing every `publish_every`
+/// updates and keeping checkpoints in `dir/ck`; returns the config file and the checkpoint folder.
+fn checkpointing_config(dir: &Path, publish_every: u32) -> (PathBuf, PathBuf) {
     let cfg = dir.join("stack.toml");
     let ck_dir = dir.join("ck");
-    let config = FAST_TRAINER
-        .replace(
-            "publish_every_updates = 2",
-            &format!("publish_every_updates = {publish_every}"),
-        )
-        .replace(
-            "[trainer]\n",
-            &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
-        );
+    let config = small_trainer(4, publish_every).replace(
+        "[trainer]\n",
+        &format!("[trainer]\ncheckpoint_dir = {:?}\n", ck_dir),
+    );
     std::fs::write(&cfg, config).unwrap();
     (cfg, ck_dir)
 }

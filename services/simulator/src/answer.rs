@@ -78,13 +78,7 @@ impl Answers {
             && !shutdown.requested()
             && ports.commands.publishers() > 0
         {
-            let cleaned = node.try_cleanup_dead_nodes().cleanups;
-            if cleaned > 0 {
-                summary.dead_nodes_cleaned += cleaned;
-                tracing::warn!(
-                    cleaned,
-                    "predictor stopped answering: removed dead nodes; the teacher drives until one connects"
-                );
+            if clean_dead_nodes(node, &mut summary.dead_nodes_cleaned) > 0 {
                 break;
             }
             answer = await_command(ports, frame.step, wait, shutdown, stale)?;
@@ -118,14 +112,7 @@ impl Answers {
             // A predictor killed with SIGKILL still counts as connected until its node is
             // cleaned; without this every later step would wait the full timeout.
             self.misses_in_a_row = 0;
-            let cleaned = node.try_cleanup_dead_nodes().cleanups;
-            if cleaned > 0 {
-                tracing::warn!(
-                    cleaned,
-                    "predictor stopped answering: removed dead nodes; the teacher drives until one connects"
-                );
-            }
-            summary.dead_nodes_cleaned += cleaned;
+            clean_dead_nodes(node, &mut summary.dead_nodes_cleaned);
         }
         let cmd = match self.on_miss {
             MissPolicy::Teacher => teacher.act(&frame.sensors),
@@ -134,6 +121,19 @@ impl Answers {
         };
         Ok((cmd, CommandSource::Teacher))
     }
+}
+
+/// Removes the nodes of dead peers (a SIGKILLed predictor); returns and counts how many.
+fn clean_dead_nodes(node: &Node<ipc::Service>, count: &mut u64) -> u64 {
+    let cleaned = node.try_cleanup_dead_nodes().cleanups;
+    if cleaned > 0 {
+        tracing::warn!(
+            cleaned,
+            "predictor stopped answering: removed dead nodes; the teacher drives until one connects"
+        );
+    }
+    *count += cleaned;
+    cleaned
 }
 
 /// Waits up to `timeout` for the command answering `step` (with the time it was taken in);

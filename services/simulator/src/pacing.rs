@@ -86,11 +86,22 @@ impl Pace {
             }
             _ => {}
         }
+        self.wait_while(rx, shutdown, watchdog, |p| {
+            p.allowed().is_some_and(|a| step as f64 > a)
+        })
+    }
+
+    /// Blocks on the trainer's status while `behind` holds, the trainer is there and no signal
+    /// came; the time counts as waited.
+    fn wait_while(
+        &mut self,
+        rx: &Receiver<TrainerStatus>,
+        shutdown: &Shutdown,
+        watchdog: &mut Watchdog,
+        behind: impl Fn(&Self) -> bool,
+    ) -> anyhow::Result<()> {
         let t0 = Instant::now();
-        while self.allowed().is_some_and(|a| step as f64 > a)
-            && !shutdown.requested()
-            && rx.publishers() > 0
-        {
+        while behind(self) && !shutdown.requested() && rx.publishers() > 0 {
             rx.wait(Duration::from_millis(100))?;
             self.refresh(rx)?;
             watchdog.pet();
@@ -111,18 +122,10 @@ impl Pace {
         if !self.enabled {
             return Ok(());
         }
-        let t0 = Instant::now();
-        loop {
-            self.refresh(rx)?;
-            let out = self.latest.is_some_and(|s| s.next_install_step > step);
-            if out || rx.publishers() == 0 || shutdown.requested() {
-                break;
-            }
-            rx.wait(Duration::from_millis(100))?;
-            watchdog.pet();
-        }
-        self.waited += t0.elapsed();
-        Ok(())
+        self.refresh(rx)?;
+        self.wait_while(rx, shutdown, watchdog, |p| {
+            !p.latest.is_some_and(|s| s.next_install_step > step)
+        })
     }
 
     /// A trainer's schedule is in force: weights are due at fixed steps, and a lockstep step

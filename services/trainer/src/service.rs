@@ -60,10 +60,10 @@ fn publish_status(
     ports: &Ports,
     learner: &Learner,
     buffer: &ReplayBuffer,
-    schedule: &Schedule,
-    session: u64,
+    at: &Progress,
     training: bool,
 ) -> anyhow::Result<()> {
+    let (schedule, session) = (&at.schedule, at.session);
     // The next update that publishes, counted in this process's updates.
     let step = learner.updates();
     let ahead = (1..).find(|d| learner.publishes_at(step + d)).unwrap_or(1);
@@ -83,12 +83,13 @@ fn publish_status(
     Ok(())
 }
 
-/// Where a run of updates stands.
-struct At<'a> {
-    session: &'a mut u64,
-    schedule: &'a mut Schedule,
-    curve: &'a mut Option<Curve>,
-    update_time: &'a mut LatencyStats,
+/// Where this process's run of updates stands.
+struct Progress {
+    /// Updates made by this process.
+    session: u64,
+    schedule: Schedule,
+    curve: Option<Curve>,
+    update_time: LatencyStats,
 }
 
 /// One update (at the schedule's horizon when there is one); sends the weights it publishes,
@@ -97,15 +98,15 @@ fn update_once(
     ports: &Ports,
     learner: &mut Learner,
     buffer: &ReplayBuffer,
-    at: &mut At<'_>,
+    at: &mut Progress,
 ) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let horizon = at.schedule.horizon(*at.session, buffer.pace());
+    let horizon = at.schedule.horizon(at.session, buffer.pace());
     let Some(Update { stats: u, publish }) = learner.train_once(buffer, horizon)? else {
         if horizon.is_some() {
             // No window before this horizon (or a refused update): the slot passes, so the
             // schedule moves on as it would anywhere.
-            *at.session += 1;
+            at.session += 1;
         }
         return Ok(());
     };
@@ -119,7 +120,7 @@ fn update_once(
     }
     let took = t0.elapsed();
     at.update_time.record_ns(took.as_nanos() as u64);
-    *at.session += 1;
+    at.session += 1;
     if let Some(c) = at.curve.as_mut() {
         c.record(&CurvePoint {
             step: u.step,
@@ -155,15 +156,17 @@ pub fn run_with(
     if learner.has_trained_weights() {
         send(ports, learner.publication()?)?;
     }
-    let mut session = 0u64;
-    let mut schedule = Schedule::default();
-    publish_status(ports, &learner, &buffer, &schedule, session, false)?;
+    let mut at = Progress {
+        session: 0,
+        schedule: Schedule::default(),
+        curve: cfg.learning_log.as_deref().map(Curve::open).transpose()?,
+        update_time: LatencyStats::new(),
+    };
+    publish_status(ports, &learner, &buffer, &at, false)?;
     tracing::info!(
         min_sequences = cfg.min_sequences,
         "model ready; waiting for replay chunks"
     );
-    let mut curve = cfg.learning_log.as_deref().map(Curve::open).transpose()?;
-    let mut update_time = LatencyStats::new();
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
     let mut failure = None;
@@ -172,7 +175,7 @@ pub fn run_with(
         // (also while ahead of a lockstep simulator's pace).
         let ready = learner.ready(&buffer);
         let rate = buffer.pace();
-        let training = ready && schedule.may_update(session, rate, buffer.received());
+        let training = ready && at.schedule.may_update(at.session, rate, buffer.received());
         let timeout = if training {
             Duration::ZERO
         } else {
@@ -185,7 +188,7 @@ pub fn run_with(
                 let res = ports.replay.drain_events().and_then(|_| {
                     ports.replay.for_each(|c| {
                         buffer.push(c);
-                        schedule.see(buffer.received(), learner.ready(&buffer));
+                        at.schedule.see(buffer.received(), learner.ready(&buffer));
                     })
                 });
                 if let Err(e) = res {
@@ -197,25 +200,19 @@ pub fn run_with(
         };
         waitset.wait_and_process_once_with_timeout(&mut on_event, timeout)?;
         if training && failure.is_none() {
-            let mut at = At {
-                session: &mut session,
-                schedule: &mut schedule,
-                curve: &mut curve,
-                update_time: &mut update_time,
-            };
             update_once(ports, &mut learner, &buffer, &mut at)?;
-            publish_status(ports, &learner, &buffer, &schedule, session, true)?;
+            publish_status(ports, &learner, &buffer, &at, true)?;
         } else {
             // Also while filling the buffer or idle: a lockstep simulator waits on it (its
             // start, the schedule, the linger at exit), and iceoryx2 hands a late subscriber
             // the history only when the publisher sends.
-            publish_status(ports, &learner, &buffer, &schedule, session, ready)?;
+            publish_status(ports, &learner, &buffer, &at, ready)?;
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
         ports.stats.borrow_mut().tick(
             learner.updates(),
-            || update_time.summary(),
+            || at.update_time.summary(),
             |s| {
                 s.replay_sequences = saturate(buffer.len() as u64);
                 s.chunks_lost = saturate(buffer.lost());
@@ -232,7 +229,7 @@ pub fn run_with(
                 buffered = buffer.len(),
                 updates = learner.updates(),
                 loss = ?learner.last_loss(),
-                update = %update_time.summary(),
+                update = %at.update_time.summary(),
                 "running"
             );
         }
@@ -244,20 +241,15 @@ pub fn run_with(
     // waiting while an update ran) and keep the updates made since the last publish on disk.
     ports.replay.for_each(|c| {
         buffer.push(c);
-        schedule.see(buffer.received(), learner.ready(&buffer));
+        at.schedule.see(buffer.received(), learner.ready(&buffer));
     })?;
     // Lockstep learning: every update whose data is in is made, so a run learns the same
     // however soon after its last step the trainer is stopped.
-    while schedule
-        .horizon(session, buffer.pace())
+    while at
+        .schedule
+        .horizon(at.session, buffer.pace())
         .is_some_and(|h| h <= buffer.received())
     {
-        let mut at = At {
-            session: &mut session,
-            schedule: &mut schedule,
-            curve: &mut curve,
-            update_time: &mut update_time,
-        };
         update_once(ports, &mut learner, &buffer, &mut at)?;
     }
     learner.save_on_stop()?;
@@ -267,7 +259,7 @@ pub fn run_with(
         steps_received: buffer.steps_received(),
         exploration_fraction: buffer.exploration_fraction(),
         buffered_sequences: buffer.len(),
-        session_updates: session,
+        session_updates: at.session,
         probe_step: learner.probe().map(|p| p.0),
         probe: learner.probe().map(|p| p.1),
         updates: learner.updates(),
@@ -275,7 +267,7 @@ pub fn run_with(
         last_loss: learner.last_loss(),
         weights_published: learner.published(),
         resumed_from_update: learner.resumed_from(),
-        update_time: update_time.summary(),
+        update_time: at.update_time.summary(),
     })
 }
 
