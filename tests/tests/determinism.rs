@@ -57,8 +57,11 @@ fn hogs() -> Vec<Child> {
         .collect()
 }
 
+/// Each tensor's name and little-endian f32 bytes, the training step and the last loss.
+type Learnt = (Vec<(String, Vec<u8>)>, u64, Option<f64>);
+
 /// The checkpoint's tensors and training figures (its save time aside).
-fn weights(run: &Path) -> (Vec<(String, Vec<u8>)>, u64, Option<f64>) {
+fn weights(run: &Path) -> Learnt {
     let bytes = std::fs::read(run.join("model.safetensors")).unwrap();
     let ck = mtanet_models::checkpoint::from_bytes(&bytes).unwrap();
     let tensors = ck

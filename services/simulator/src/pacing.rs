@@ -124,7 +124,7 @@ impl Pace {
         }
         self.refresh(rx)?;
         self.wait_while(rx, shutdown, watchdog, |p| {
-            !p.latest.is_some_and(|s| s.next_install_step > step)
+            p.latest.is_none_or(|s| s.next_install_step <= step)
         })
     }
 
