@@ -1,5 +1,6 @@
 //! `plots/<metric>.png`: per metric, the variants side by side (learn, then eval), every seed's
-//! point and a bar at the median, drawn by `mtanet-plot`'s dot plot.
+//! point and a bar at the median, drawn by `mtanet-plot`'s dot plot; beside it
+//! `plots/<metric>.csv`, the points drawn (`column,value`), for whoever wants the numbers.
 
 use std::path::Path;
 
@@ -8,7 +9,7 @@ use crate::metrics::NAMES;
 use crate::spec::Spec;
 use crate::summary::seed_values;
 
-/// One PNG per metric in `dir`; a metric with no value anywhere still gets one (empty).
+/// One PNG and its CSV per metric in `dir`; a metric with no value anywhere still gets them (empty).
 pub fn write(dir: &Path, spec: &Spec, records: &[CellRecord]) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
     for (m, (name, meaning)) in NAMES.iter().enumerate() {
@@ -28,6 +29,13 @@ pub fn write(dir: &Path, spec: &Spec, records: &[CellRecord]) -> anyhow::Result<
         let path = dir.join(format!("{name}.png"));
         mtanet_plot::variants_dot_plot(&path, name, &short(meaning), &columns)
             .map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))?;
+        let mut csv = String::from("column,value\n");
+        for (label, values) in &columns {
+            for v in values {
+                csv.push_str(&format!("{label},{v}\n"));
+            }
+        }
+        mtanet_files::write_bytes(&path.with_extension("csv"), csv.as_bytes())?;
     }
     Ok(())
 }

@@ -1,22 +1,24 @@
 //! `mta experiment` end to end with the real binaries: the shipped smoke experiment
-//! (`experiments/smoke.toml`: 2 variants x 2 seeds, 20 simulated s learnt on the oval, 10 s
-//! evaluated on a generated track) into a temporary folder under a private namespace prefix.
-//! Every run must leave its row, the summary its sections, every metric its picture; a second
-//! invocation must find every cell finished and run nothing.
+//! (`experiments/smoke.toml`: 2 variants x 1 seed, 60 simulated s learnt on the oval, 20 s
+//! evaluated on a generated track) into a temporary folder under a private namespace prefix, two
+//! cells side by side (`--jobs 2`). Every run must leave its row, and the table, the summary and
+//! the plots' points must say what the run folders' reports say; a second invocation must find
+//! every cell finished and run nothing; a cell run again alone (`--jobs 1`) must give the same row.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use mtanet_experiment::metrics::NAMES;
+use mtanet_report::Report;
 use mtanet_system_tests::{bin, here, unique_namespace};
 
-/// Runs `mta experiment FILE` from the repository root; its success and its output.
-fn run(file: &Path, out: &Path, ns: &str, log: &Path) -> (bool, String) {
+/// Runs `mta experiment FILE --jobs N` from the repository root; its success and its output.
+fn run(file: &Path, out: &Path, ns: &str, jobs: u32, log: &Path) -> (bool, String) {
     let status = Command::new(bin("mta"))
         .current_dir(here().join(".."))
         .arg("experiment")
         .arg(file)
-        .args(["--namespace", ns])
+        .args(["--namespace", ns, "--jobs", &jobs.to_string()])
         .arg("--out")
         .arg(out)
         .stderr(std::fs::File::create(log).unwrap())
@@ -28,8 +30,8 @@ fn run(file: &Path, out: &Path, ns: &str, log: &Path) -> (bool, String) {
     )
 }
 
-fn experiment(out: &Path, ns: &str, log: &Path) -> String {
-    let (ok, text) = run(Path::new("experiments/smoke.toml"), out, ns, log);
+fn experiment(out: &Path, ns: &str, jobs: u32, log: &Path) -> String {
+    let (ok, text) = run(Path::new("experiments/smoke.toml"), out, ns, jobs, log);
     assert!(ok, "mta experiment failed\n{text}");
     text
 }
@@ -52,46 +54,105 @@ fn finished_files(dir: &Path) -> Vec<(PathBuf, std::time::SystemTime)> {
     found
 }
 
+/// results.csv as a header and rows sorted by (variant, seed, phase, track).
+fn table(out: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let mut lines = csv
+        .lines()
+        .map(|l| l.split(',').map(String::from).collect());
+    let header: Vec<String> = lines.next().unwrap();
+    let mut rows: Vec<Vec<String>> = lines.collect();
+    rows.sort();
+    (header, rows)
+}
+
+/// The figures a row must repeat, read straight from its run folder's report.
+fn from_report(r: &Report) -> [(&'static str, Option<f64>); 4] {
+    [
+        ("laps", Some(r.laps.completed as f64)),
+        (
+            "laps_active_inference",
+            Some(r.laps.completed_under_active_inference as f64),
+        ),
+        ("fallbacks", Some(r.control.fallbacks as f64)),
+        ("trainer_updates", r.trainer.updates.map(|u| u as f64)),
+    ]
+}
+
 #[test]
-fn the_smoke_experiment_runs_every_cell_summarises_and_resumes() {
+fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("smoke");
     let ns = unique_namespace("xt");
-    experiment(&out, &ns, &dir.path().join("first.log"));
+    experiment(&out, &ns, 2, &dir.path().join("first.log"));
 
-    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let (header, rows) = table(&out);
     let mut want_header = vec!["variant", "seed", "phase", "track"];
     want_header.extend(NAMES.iter().map(|n| n.0));
     assert_eq!(header, want_header);
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    let mut keys: Vec<String> = rows.iter().map(|r| r[..4].join(",")).collect();
-    keys.sort();
-    let mut want = Vec::new();
-    for v in ["flat", "paper"] {
-        for s in ["0", "1"] {
-            want.push(format!("{v},{s},eval,generated:101"));
-            want.push(format!("{v},{s},learn,scenes/tracks/oval.csv"));
+    let keys: Vec<String> = rows.iter().map(|r| r[..4].join(",")).collect();
+    assert_eq!(
+        keys,
+        [
+            "flat,0,eval,generated:101",
+            "flat,0,learn,scenes/tracks/oval.csv",
+            "paper,0,eval,generated:101",
+            "paper,0,learn,scenes/tracks/oval.csv",
+        ],
+        "one row per run"
+    );
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let value = |r: &[String], name: &str| -> Option<f64> {
+        let v = &r[col(name)];
+        (!v.is_empty()).then(|| v.parse().expect("a number"))
+    };
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    for r in &rows {
+        let (variant, phase) = (&r[0], &r[2]);
+        let folder = match phase.as_str() {
+            "learn" => "learn".to_string(),
+            _ => "eval-generated-101".to_string(),
+        };
+        let run = out.join(variant).join("0").join(folder);
+        let report: Report = mtanet_files::read_json(&run.join("report.json")).unwrap();
+        for (name, want) in from_report(&report) {
+            assert_eq!(
+                value(r, name),
+                want,
+                "{name} of {} vs its row {r:?}",
+                run.display()
+            );
+        }
+        // The plot of a metric draws exactly the table's values, labelled "variant (phase)".
+        let points = std::fs::read_to_string(out.join("plots/laps.csv")).unwrap();
+        let laps = value(r, "laps").unwrap();
+        assert!(
+            points
+                .lines()
+                .any(|l| l == format!("{variant} ({phase}),{laps}")),
+            "{variant} ({phase}) laps {laps} not in plots/laps.csv:\n{points}"
+        );
+        if phase == "learn" {
+            let updates = value(r, "trainer_updates").expect("a learn run trains");
+            let ratio = value(r, "heldout_over_copy_last").expect("a held-out ratio");
+            assert!(updates >= 20.0 && ratio.is_finite() && ratio > 0.0, "{r:?}");
         }
     }
-    assert_eq!(keys, want, "one row per run:\n{csv}");
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    for r in rows.iter().filter(|r| r[2] == "learn") {
-        let updates: f64 = r[col("trainer_updates")]
-            .parse()
-            .expect("a learn run trains");
-        let ratio: f64 = r[col("heldout_over_copy_last")]
-            .parse()
-            .expect("a held-out ratio");
-        assert!(updates >= 1.0 && ratio.is_finite() && ratio > 0.0, "{r:?}");
+    // One seed: the summary's median of a variant is its one value.
+    let learn_updates: Vec<String> = ["flat", "paper"]
+        .iter()
+        .map(|v| {
+            let r = rows.iter().find(|r| &r[0] == v && r[2] == "learn").unwrap();
+            format!("{:.0} [", value(r, "trainer_updates").unwrap())
+        })
+        .collect();
+    let line = md
+        .lines()
+        .find(|l| l.starts_with("| `trainer_updates` |"))
+        .unwrap_or_else(|| panic!("no trainer_updates row:\n{md}"));
+    for cell in &learn_updates {
+        assert!(line.contains(cell.as_str()), "{cell} not in {line}");
     }
-    for r in &rows {
-        let laps: f64 = r[col("laps")].parse().expect("every run counts laps");
-        assert!(laps >= 0.0);
-    }
-
-    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     for section in [
         "# Experiment `smoke`",
         "## learn",
@@ -119,14 +180,18 @@ fn the_smoke_experiment_runs_every_cell_summarises_and_resumes() {
 
     // Resume: every cell is finished, so nothing runs and nothing in a run folder changes.
     let before = finished_files(&out);
-    assert_eq!(before.len(), 4 + 8, "4 cell.json, 8 report.json");
-    let log = experiment(&out, &ns, &dir.path().join("second.log"));
-    assert!(log.contains("4 finished, 0 to run"), "{log}");
+    assert_eq!(before.len(), 2 + 4, "2 cell.json, 4 report.json");
+    let log = experiment(&out, &ns, 2, &dir.path().join("second.log"));
+    assert!(log.contains("2 finished, 0 to run"), "{log}");
     assert_eq!(finished_files(&out), before, "a finished cell ran again");
-    assert_eq!(
-        std::fs::read_to_string(out.join("results.csv")).unwrap(),
-        csv
-    );
+    assert_eq!(table(&out), (header.clone(), rows.clone()));
+
+    // The same cell run alone learns and drives the same (lockstep is deterministic): its rows
+    // come back identical, latencies and wall time aside (results.csv has neither).
+    std::fs::remove_dir_all(out.join("flat")).unwrap();
+    let log = experiment(&out, &ns, 1, &dir.path().join("third.log"));
+    assert!(log.contains("1 finished, 1 to run"), "{log}");
+    assert_eq!(table(&out), (header, rows), "--jobs 1 and --jobs 2 differ");
 }
 
 /// A cell whose learn run leaves no checkpoint (3 s: the trainer never starts) fails with its
@@ -144,7 +209,7 @@ fn a_failed_cell_is_reported_with_its_log_and_retried() {
     .unwrap();
     let out = dir.path().join("out");
     let ns = unique_namespace("xf");
-    let (ok, log) = run(&file, &out, &ns, &dir.path().join("first.log"));
+    let (ok, log) = run(&file, &out, &ns, 1, &dir.path().join("first.log"));
     assert!(!ok, "a failed cell fails the command\n{log}");
     let failure = out.join("paper/0/failed.json");
     let text =
@@ -159,7 +224,7 @@ fn a_failed_cell_is_reported_with_its_log_and_retried() {
         "{md}"
     );
     assert!(!out.join("paper/0/cell.json").exists());
-    let (ok, log) = run(&file, &out, &ns, &dir.path().join("second.log"));
+    let (ok, log) = run(&file, &out, &ns, 1, &dir.path().join("second.log"));
     assert!(
         !ok && log.contains("0 finished, 1 to run"),
         "retried:\n{log}"
