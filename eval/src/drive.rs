@@ -144,14 +144,20 @@ where
     Ok(report)
 }
 
-/// Frames and the commands that led to them (`applied[i]`: frame i-1 -> i) from `steps` control
-/// steps of the reactive rule with seeded exploration on `world`, for figures and tests; the car
-/// is put back like in the simulator (a reset starts the recording over).
-pub fn record_reactive(
-    world: &mut World,
-    steps: usize,
-    seed: u64,
-) -> anyhow::Result<(Vec<[f32; 96]>, Vec<[f32; 2]>)> {
+/// A drive as recorded: per control step the frame, the command in force that led to it
+/// (`applied[i]`: frame i-1 -> i), and
+/// where the car really was (for analysis; a model never sees it).
+#[derive(Debug, Clone, Default)]
+pub struct Recorded {
+    pub frames: Vec<[f32; 96]>,
+    pub applied: Vec<[f32; 2]>,
+    pub truth: Vec<mtanet_scenes::GroundTruth>,
+}
+
+/// `steps` control steps of the reactive rule with seeded exploration (what the probe, the
+/// figure strip, the held-out drive and `mta analyze` drive). A recording never spans a reset:
+/// a car put back at the start begins it again.
+pub fn record_reactive(world: &mut World, steps: usize, seed: u64) -> anyhow::Result<Recorded> {
     use mtanet_control::{
         AgentConfig, Blind, ExplorationConfig, FrameShape, NoPlans, ReactiveConfig,
     };
@@ -172,8 +178,8 @@ pub fn record_reactive(
         period as f32,
     );
     let mut car = Drive::new(world, ResetRule::default());
-    let (mut frames, mut applied) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
-    while frames.len() < steps {
+    let mut rec = Recorded::default();
+    while rec.frames.len() < steps {
         let f = car.sense();
         let t = Tick {
             episode: f.episode,
@@ -183,13 +189,12 @@ pub fn record_reactive(
             lockstep: true,
         };
         let d = agent.step(&t, &mut Blind, &mut NoPlans)?;
-        frames.push(f.sensors.image);
-        applied.push(f.applied);
+        rec.frames.push(f.sensors.image);
+        rec.applied.push(f.applied);
+        rec.truth.push(f.sensors.truth);
         if car.step(d.wheels, d.driver.source()).reset.is_some() {
-            // A recording never spans a reset: start over.
-            frames.clear();
-            applied.clear();
+            rec = Recorded::default();
         }
     }
-    Ok((frames, applied))
+    Ok(rec)
 }

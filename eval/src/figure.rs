@@ -18,7 +18,9 @@ pub fn strip_on_track(model: &Path, track: &Path, out: &Path) -> anyhow::Result<
     let len = DEFAULT_FRAMES.iter().max().copied().unwrap_or(130) + 1;
     let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());
     let mut world = mtanet_scenes::World::new(&scene)?;
-    let (frames, applied) = crate::drive::record_reactive(&mut world, (len + 1) * skip, 11)?;
+    let crate::drive::Recorded {
+        frames, applied, ..
+    } = crate::drive::record_reactive(&mut world, (len + 1) * skip, 11)?;
     let (mut f, mut a) = (Vec::new(), Vec::new());
     push_window(&frames, &applied, skip - 1, skip, len, &mut f, &mut a);
     let images = tch::Tensor::from_slice(&f).view([len as i64, 8, 12]);

@@ -44,7 +44,9 @@ pub fn ensure(
     let scene = scene.clone().with_track(&spec.track);
     let mut world = mtanet_scenes::World::new(&scene)
         .with_context(|| format!("the held-out track {}", spec.track.display()))?;
-    let (frames, applied) = mtanet_eval::drive::record_reactive(&mut world, steps, spec.seed)?;
+    let mtanet_eval::drive::Recorded {
+        frames, applied, ..
+    } = mtanet_eval::drive::record_reactive(&mut world, steps, spec.seed)?;
     let images: Vec<f32> = frames.iter().flatten().copied().collect();
     let actions: Vec<f32> = applied.iter().flatten().copied().collect();
     let (h, w) = (mtanet_ipc::IMAGE_HEIGHT, mtanet_ipc::IMAGE_WIDTH);

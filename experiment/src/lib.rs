@@ -2,8 +2,10 @@
 //! cell learns from scratch in lockstep on one track and is then evaluated, with no learning, on
 //! others; every run keeps its own folder (`DIR/<variant>/<seed>/`). Finished cells are not run
 //! again; failed ones are reported and run again next time. Results: `results.csv`,
-//! `summary.md`, `plots/<metric>.png`. See docs/experiments.md.
+//! `summary.md`, `plots/<metric>.png`; each learnt checkpoint's timescales and read-outs (`mta
+//! analyze`) in `<cell>/analysis/`. See docs/experiments.md.
 
+pub mod analysis;
 pub mod cell;
 pub mod config;
 pub mod heldout;
@@ -127,6 +129,18 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
                 mtanet_files::write_json(&cells[i].failure_path(), &f)?;
                 failures[i] = Some(f);
             }
+        }
+    }
+    for (cell, record) in cells.iter().zip(records.iter_mut()) {
+        let Some(record) = record.as_mut() else {
+            continue;
+        };
+        if shutdown.requested() {
+            break;
+        }
+        // A cell without its analysis still counts: its figures are left empty.
+        if let Err(e) = analysis::ensure(cell, record, &spec, &scene) {
+            tracing::warn!(cell = %cell.label(), "no analysis: {e:#}");
         }
     }
     let records: Vec<CellRecord> = records.into_iter().flatten().collect();

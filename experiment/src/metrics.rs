@@ -14,8 +14,10 @@ pub const TAKEOVER_SHARE: f64 = 0.9;
 pub const TAKEOVER_WINDOW_S: f64 = 60.0;
 
 /// One run's metrics; `None` where the run has no such figure (no takeover, a driver that
-/// never drove, no trainer in an evaluation run).
+/// never drove, no trainer in an evaluation run). The `timescale_*` and `context_*` figures are
+/// the learnt checkpoint's, from `mta analyze` on the first evaluation track (learn rows).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Metrics {
     pub takeover_s: Option<f64>,
     pub laps: Option<f64>,
@@ -27,10 +29,24 @@ pub struct Metrics {
     pub heldout_over_copy_last: Option<f64>,
     pub probe: Option<f64>,
     pub trainer_updates: Option<f64>,
+    pub timescale_r0_s: Option<f64>,
+    pub timescale_r1_s: Option<f64>,
+    pub timescale_r2_s: Option<f64>,
+    pub timescale_units0_s: Option<f64>,
+    pub timescale_units1_s: Option<f64>,
+    pub timescale_units2_s: Option<f64>,
+    pub context_curvature_1s_r0: Option<f64>,
+    pub context_curvature_1s_r1: Option<f64>,
+    pub context_curvature_1s_r2: Option<f64>,
+    pub context_curvature_1s_frames5: Option<f64>,
+    pub context_since_bend_r0: Option<f64>,
+    pub context_since_bend_r1: Option<f64>,
+    pub context_since_bend_r2: Option<f64>,
+    pub context_since_bend_frames5: Option<f64>,
 }
 
 /// The metric columns in results.csv order, with what each means (summary.md, plots).
-pub const NAMES: [(&str, &str); 10] = [
+pub const NAMES: [(&str, &str); 24] = [
     (
         "takeover_s",
         "simulated s until active inference first drives and then holds the wheel >= 90% of the next 60 s",
@@ -65,11 +81,49 @@ pub const NAMES: [(&str, &str); 10] = [
         "counterfactual probe (rank correlation): the trainer's last (learn), on the eval track (eval)",
     ),
     ("trainer_updates", "trainer updates in the run (learn rows)"),
+    (
+        "timescale_r0_s",
+        "e-folding time (s) of R_0's autocorrelation on the analysis drive (learn rows)",
+    ),
+    (
+        "timescale_r1_s",
+        "e-folding time (s) of R_1's autocorrelation",
+    ),
+    (
+        "timescale_r2_s",
+        "e-folding time (s) of R_2's autocorrelation",
+    ),
+    (
+        "timescale_units0_s",
+        "e-folding time (s) of layer 0's generative units' outputs, mean over units",
+    ),
+    ("timescale_units1_s", "the same for layer 1's units"),
+    ("timescale_units2_s", "the same for layer 2's units"),
+    (
+        "context_curvature_1s_r0",
+        "R^2 of the cross-validated read-out of the curvature 1 s ahead from R_0",
+    ),
+    ("context_curvature_1s_r1", "the same from R_1"),
+    ("context_curvature_1s_r2", "the same from R_2"),
+    (
+        "context_curvature_1s_frames5",
+        "the same from the last 5 frames stacked (baseline)",
+    ),
+    (
+        "context_since_bend_r0",
+        "R^2 of the cross-validated read-out of the line length since the last bend from R_0",
+    ),
+    ("context_since_bend_r1", "the same from R_1"),
+    ("context_since_bend_r2", "the same from R_2"),
+    (
+        "context_since_bend_frames5",
+        "the same from the last 5 frames stacked (baseline)",
+    ),
 ];
 
 impl Metrics {
     /// The values in [`NAMES`] order.
-    pub fn values(&self) -> [Option<f64>; 10] {
+    pub fn values(&self) -> [Option<f64>; 24] {
         [
             self.takeover_s,
             self.laps,
@@ -81,7 +135,56 @@ impl Metrics {
             self.heldout_over_copy_last,
             self.probe,
             self.trainer_updates,
+            self.timescale_r0_s,
+            self.timescale_r1_s,
+            self.timescale_r2_s,
+            self.timescale_units0_s,
+            self.timescale_units1_s,
+            self.timescale_units2_s,
+            self.context_curvature_1s_r0,
+            self.context_curvature_1s_r1,
+            self.context_curvature_1s_r2,
+            self.context_curvature_1s_frames5,
+            self.context_since_bend_r0,
+            self.context_since_bend_r1,
+            self.context_since_bend_r2,
+            self.context_since_bend_frames5,
         ]
+    }
+
+    /// Takes the learnt checkpoint's timescales and read-outs from its analysis.
+    pub fn add_analysis(&mut self, a: &mtanet_analysis::Analysis) {
+        let seconds = |t: &mtanet_analysis::timescale::Timescale| t.steps.map(|s| s * a.step_s);
+        let layer = |l: usize| a.layers.get(l);
+        let r = |l| layer(l).and_then(|x| seconds(&x.r));
+        let units = |l| {
+            let x = layer(l)?;
+            let v: Vec<f64> = x.units.iter().filter_map(seconds).collect();
+            (!v.is_empty() && v.len() == x.units.len())
+                .then(|| v.iter().sum::<f64>() / v.len() as f64)
+        };
+        let r2 = |source: &str, target: &str| {
+            a.context
+                .iter()
+                .find(|c| c.source == source)
+                .and_then(|c| c.r2(&a.targets, target))
+                .filter(|v| v.is_finite())
+        };
+        let (c, b) = ("curvature_1s", "since_bend_m");
+        self.timescale_r0_s = r(0);
+        self.timescale_r1_s = r(1);
+        self.timescale_r2_s = r(2);
+        self.timescale_units0_s = units(0);
+        self.timescale_units1_s = units(1);
+        self.timescale_units2_s = units(2);
+        self.context_curvature_1s_r0 = r2("R_0", c);
+        self.context_curvature_1s_r1 = r2("R_1", c);
+        self.context_curvature_1s_r2 = r2("R_2", c);
+        self.context_curvature_1s_frames5 = r2("frames_5", c);
+        self.context_since_bend_r0 = r2("R_0", b);
+        self.context_since_bend_r1 = r2("R_1", b);
+        self.context_since_bend_r2 = r2("R_2", b);
+        self.context_since_bend_frames5 = r2("frames_5", b);
     }
 
     /// A run folder's metrics (without the held-out error).
@@ -102,6 +205,7 @@ impl Metrics {
             heldout_over_copy_last: None,
             probe: r.probe.rank_correlation,
             trainer_updates: r.trainer.updates.map(|u| u as f64),
+            ..Self::default()
         })
     }
 }

@@ -48,6 +48,8 @@ pub struct Spec {
     pub heldout: Heldout,
     #[serde(default)]
     pub bootstrap: Bootstrap,
+    #[serde(default)]
+    pub analysis: AnalysisDrive,
     #[serde(rename = "variant")]
     pub variants: Vec<Variant>,
 }
@@ -81,6 +83,35 @@ impl Default for Heldout {
             sim_seconds: 60.0,
             seed: 9001,
         }
+    }
+}
+
+/// The drive on which every cell's learnt checkpoint is analysed (`mta analyze`: timescales
+/// and read-outs per layer): the same for every cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AnalysisDrive {
+    /// Default: the first evaluation track (none: no analysis).
+    pub track: Option<PathBuf>,
+    /// At least 5 laps of the track are needed (the read-outs' folds).
+    pub sim_seconds: f64,
+    pub seed: u64,
+}
+
+impl Default for AnalysisDrive {
+    fn default() -> Self {
+        Self {
+            track: None,
+            sim_seconds: 300.0,
+            seed: 0,
+        }
+    }
+}
+
+impl Spec {
+    /// The analysis drive's track, if there is one.
+    pub fn analysis_track(&self) -> Option<&Path> {
+        (self.analysis.track.as_deref()).or(self.eval_tracks.first().map(PathBuf::as_path))
     }
 }
 
@@ -164,7 +195,8 @@ impl Spec {
         }
         let tracks = std::iter::once(("learn_track", &self.learn_track))
             .chain(self.eval_tracks.iter().map(|t| ("eval_tracks", t)))
-            .chain(std::iter::once(("heldout.track", &self.heldout.track)));
+            .chain(std::iter::once(("heldout.track", &self.heldout.track)))
+            .chain(self.analysis.track.iter().map(|t| ("analysis.track", t)));
         for (key, track) in tracks {
             mtanet_track::Track::load(track).map_err(|e| {
                 bad(
@@ -190,6 +222,10 @@ impl Spec {
                 b.resamples, b.confidence
             );
             return Err(bad("[bootstrap]", m));
+        }
+        if !at_least(self.analysis.sim_seconds, 60.0) {
+            let m = format!("= {}: at least 60 s", self.analysis.sim_seconds);
+            return Err(bad("analysis.sim_seconds", m));
         }
         if !at_least(self.heldout.sim_seconds, 10.0) {
             let m = format!("= {}: at least 10 s", self.heldout.sim_seconds);

@@ -23,7 +23,7 @@ use plotters::prelude::*;
 pub use dots::variants_dot_plot;
 pub use grid::{Cell, image_grid};
 pub use latency::latency_histograms;
-pub use lines::{Panel, Series, lines_chart};
+pub use lines::{Panel, Series, category_chart, lines_chart};
 pub use trace::{Path2d, lap_trace};
 
 pub type Rgb = [u8; 3];

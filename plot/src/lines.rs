@@ -40,7 +40,51 @@ pub fn lines_chart(path: &Path, x_label: &str, panels: &[Panel]) -> Result<(), P
     let xs = panels
         .iter()
         .flat_map(|p| p.series.iter().flat_map(|s| s.points.iter().map(|q| q.0)));
-    let (x0, x1) = padded(xs);
+    let x = XAxis {
+        label: x_label,
+        range: padded(xs),
+        names: &[],
+    };
+    chart(path, &x, panels)
+}
+
+/// [`lines_chart`] over named categories: a series' point (i, y) is drawn above `categories[i]`.
+pub fn category_chart(
+    path: &Path,
+    x_label: &str,
+    categories: &[&str],
+    panels: &[Panel],
+) -> Result<(), PlotError> {
+    let x = XAxis {
+        label: x_label,
+        range: (-0.5, categories.len() as f64 - 0.5),
+        names: categories,
+    };
+    chart(path, &x, panels)
+}
+
+struct XAxis<'a> {
+    label: &'a str,
+    range: (f64, f64),
+    /// Names at 0, 1, ...; empty: numeric ticks.
+    names: &'a [&'a str],
+}
+
+impl XAxis<'_> {
+    fn tick(&self, v: f64) -> String {
+        if self.names.is_empty() {
+            return fmt_tick(v);
+        }
+        let i = v.round();
+        match self.names.get(i as usize) {
+            Some(n) if (v - i).abs() < 1e-6 && i >= 0.0 => n.to_string(),
+            _ => String::new(),
+        }
+    }
+}
+
+fn chart(path: &Path, x: &XAxis, panels: &[Panel]) -> Result<(), PlotError> {
+    let (x0, x1) = x.range;
     let height = PANEL_HEIGHT * panels.len().max(1) as u32;
     render(path, (WIDTH, height), |root| {
         root.fill(&WHITE)?;
@@ -49,9 +93,9 @@ pub fn lines_chart(path: &Path, x_label: &str, panels: &[Panel]) -> Result<(), P
             let (area, column) = legend::split(area);
             let y = y_range(p);
             if p.log_y {
-                panel(&area, p, x0..x1, LogAxis::new(y.0, y.1), x_label)?;
+                panel(&area, p, x0..x1, LogAxis::new(y.0, y.1), x)?;
             } else {
-                panel(&area, p, x0..x1, y.0..y.1, x_label)?;
+                panel(&area, p, x0..x1, y.0..y.1, x)?;
             }
             legend::draw(&column, 44, &entries(p))?;
         }
@@ -102,7 +146,7 @@ fn line_width(c: Rgb) -> u32 {
 
 const REF: Rgb = [90, 90, 90];
 
-fn panel<Y>(area: &Area, p: &Panel, x: Range<f64>, y: Y, x_label: &str) -> DrawResult
+fn panel<Y>(area: &Area, p: &Panel, x: Range<f64>, y: Y, axis: &XAxis) -> DrawResult
 where
     Y: AsRangedCoord<Value = f64>,
     Y::CoordDescType: ValueFormatter<f64>,
@@ -117,9 +161,14 @@ where
         .configure_mesh()
         .light_line_style(RGBColor(238, 238, 238))
         .max_light_lines(4)
-        .x_desc(x_label)
+        .x_desc(axis.label)
         .y_desc(p.y_label)
-        .x_label_formatter(&|v| fmt_tick(*v))
+        .x_labels(if axis.names.is_empty() {
+            10
+        } else {
+            2 * axis.names.len() + 1
+        })
+        .x_label_formatter(&|v| axis.tick(*v))
         .y_label_formatter(&|v| fmt_tick(*v))
         .label_style(text(14))
         .axis_desc_style(text(15))

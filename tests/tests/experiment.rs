@@ -133,6 +133,23 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
             "{variant} ({phase}) laps {laps} not in plots/laps.csv:\n{points}"
         );
         if phase == "learn" {
+            // The checkpoint's analysis: its figures in the row are those of analysis.json.
+            let path = out.join(variant).join("0/analysis/analysis.json");
+            let a: mtanet_analysis::Analysis = mtanet_files::read_json(&path).unwrap();
+            let r0 = a.layers[0].r.steps.map(|s| s * a.step_s);
+            assert!(r0.is_some_and(|s| s > 0.0), "{path:?}: {:?}", a.layers[0]);
+            assert_eq!(value(r, "timescale_r0_s"), r0);
+            let since = a.context.iter().find(|c| c.source == "R_2").unwrap();
+            assert_eq!(
+                value(r, "context_since_bend_r2"),
+                since.r2(&a.targets, "since_bend_m")
+            );
+            for png in ["timescales.png", "context.png", "strip.png"] {
+                assert!(
+                    path.with_file_name(png).exists(),
+                    "no {png} beside {path:?}"
+                );
+            }
             let updates = value(r, "trainer_updates").expect("a learn run trains");
             let ratio = value(r, "heldout_over_copy_last").expect("a held-out ratio");
             assert!(updates >= 20.0 && ratio.is_finite() && ratio > 0.0, "{r:?}");
@@ -181,9 +198,18 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
     // Resume: every cell is finished, so nothing runs and nothing in a run folder changes.
     let before = finished_files(&out);
     assert_eq!(before.len(), 2 + 4, "2 cell.json, 4 report.json");
+    let analysed = std::fs::metadata(out.join("paper/0/analysis/analysis.json"))
+        .unwrap()
+        .modified()
+        .unwrap();
     let log = experiment(&out, &ns, 2, &dir.path().join("second.log"));
     assert!(log.contains("2 finished, 0 to run"), "{log}");
     assert_eq!(finished_files(&out), before, "a finished cell ran again");
+    let again = std::fs::metadata(out.join("paper/0/analysis/analysis.json"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    assert_eq!(again, analysed, "a finished analysis ran again");
     assert_eq!(table(&out), (header.clone(), rows.clone()));
 
     // The same cell run alone learns and drives the same (lockstep is deterministic): its rows

@@ -258,6 +258,24 @@ impl Track {
         (p, (b[1] - a[1]).atan2(b[0] - a[0]))
     }
 
+    /// Signed curvature (1/m, left turns positive) at arc length `s`: that of the circle through
+    /// the line's points at `s - half_window_m`, `s` and `s + half_window_m` (Menger curvature).
+    /// On a polyline's arcs it is the arc's own curvature whatever the waypoint spacing; a
+    /// shipped track's corner comes out as its turn spread over the window.
+    pub fn curvature_at(&self, s: f64, half_window_m: f64) -> f64 {
+        let h = half_window_m.max(1e-6);
+        let (a, _) = self.pose_at(s - h);
+        let (b, _) = self.pose_at(s);
+        let (c, _) = self.pose_at(s + h);
+        let cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        let sides = dist(a, b) * dist(b, c) * dist(a, c);
+        if sides <= 0.0 {
+            0.0
+        } else {
+            2.0 * cross / sides
+        }
+    }
+
     /// Closest point of the line to `q`. Global search: a few hundred segments cost ~1 us, and a
     /// global search stays right after teleports (`World::set_pose`).
     pub fn project(&self, q: [f64; 2]) -> Projection {
@@ -338,6 +356,30 @@ mod tests {
         assert!((q[0]).abs() < 1e-3 && (q[1] - r).abs() < 1e-3);
         // Heading -x at the top of a counter-clockwise circle (+-pi).
         assert!(heading.cos() < -0.99, "{heading}");
+    }
+
+    /// A counter-clockwise circle of radius 0.5 m has curvature +2 everywhere, across the
+    /// start too; driven clockwise, -2.
+    #[test]
+    fn curvature_of_a_circle_is_one_over_its_radius_with_its_turn_sign() {
+        let r = 0.5;
+        let ccw: Vec<_> = (0..400)
+            .map(|i| {
+                let a = i as f64 / 400.0 * std::f64::consts::TAU;
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect();
+        let mut cw = ccw.clone();
+        cw.reverse();
+        let (ccw, cw) = (
+            Track::from_points("ccw", ccw, 0.02).unwrap(),
+            Track::from_points("cw", cw, 0.02).unwrap(),
+        );
+        for s in [0.0, 0.7, ccw.length_m() - 0.01] {
+            let k = ccw.curvature_at(s, 0.05);
+            assert!((k - 2.0).abs() < 0.04, "{s}: {k}");
+            assert!((cw.curvature_at(s, 0.05) + 2.0).abs() < 0.04);
+        }
     }
 
     #[test]

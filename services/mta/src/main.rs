@@ -1,7 +1,7 @@
 //! `mta`: the operator CLI, a thin shell over the crates that do the work: `mtanet-launch`
 //! (up, systemd), `mtanet-soak`, `mtanet-observe` (status, top), `mtanet-recording` (record,
 //! replay), `mtanet-report` (report, plot), `mtanet-offline` (train, figures, synth, probe,
-//! drive, track) and `mtanet-experiment` (experiment).
+//! drive, track), `mtanet-experiment` (experiment) and `mtanet-analysis` (analyze).
 
 use clap::{Parser, Subcommand};
 use mtanet_launch::{systemd, up};
@@ -64,6 +64,9 @@ enum Cmd {
     /// Run a matrix of variants x seeds (learn on one track, evaluate on others) and summarise
     /// it over seeds: results.csv, summary.md, plots.
     Experiment(mtanet_experiment::ExperimentArgs),
+    /// Measure a checkpoint's layers on a drive: each layer's timescale, what it holds about the
+    /// road (cross-validated read-outs against frame baselines), the paper's figure strip.
+    Analyze(mtanet_analysis::AnalyzeArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -86,5 +89,6 @@ fn main() -> anyhow::Result<()> {
         Cmd::Track(a) => track::run(a),
         Cmd::Systemd(a) => systemd::run(a),
         Cmd::Experiment(a) => mtanet_experiment::run(a),
+        Cmd::Analyze(a) => mtanet_analysis::run(a),
     }
 }

@@ -1,0 +1,3 @@
+fn main() {
+    mtanet_rpath::emit();
+}
