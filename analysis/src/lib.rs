@@ -6,8 +6,9 @@
 //!   (`timescale.rs`), with a block-bootstrap interval;
 //! - its context: cross-validated ridge read-outs (folds by lap, `readout.rs`) from R_l to the
 //!   curvature ahead, the heading error and lateral offset now, and the distance since the last
-//!   bend (`targets.rs`), beside the same read-outs from the raw frame and from the last 5
-//!   frames stacked;
+//!   bend (`targets.rs`), beside the same read-outs from the raw frame, from the last 5
+//!   frames stacked, and from the same network untrained (seeded initialisation: what the
+//!   architecture and the taus give before any learning);
 //!
 //! and draws the paper's figure strip (the first unit's output of every layer at frames 1, 10,
 //! 50, 100, 130) beside the autocorrelations. Everything lands in `analysis.json` and PNGs.
@@ -94,9 +95,12 @@ pub struct Analysis {
     pub mean_speed_mps: f64,
     /// Per layer, bottom first.
     pub layers: Vec<LayerTimescales>,
+    /// The same for the untrained network (its initialisation, seeded with the drive's seed).
+    pub layers_untrained: Vec<LayerTimescales>,
     /// Read-out targets: (name, meaning); `context` rows give one R^2 per target in this order.
     pub targets: Vec<(String, String)>,
-    /// Per state (`R_0`.., then the baselines `frame` and `frames_5`), the read-outs.
+    /// Per state (`R_0`.., then the baselines `frame`, `frames_5` and the untrained network's
+    /// `R_0 untrained`..), the read-outs.
     pub context: Vec<ContextRow>,
     /// How the targets are defined (`targets.rs`).
     pub bend_curvature_per_m: f64,
@@ -156,6 +160,9 @@ pub fn analyze_checkpoint(
     let ck = mtanet_models::checkpoint::load(checkpoint)
         .with_context(|| format!("loading {}", checkpoint.display()))?;
     let (_vs, model) = ck.build()?;
+    tch::manual_seed(o.seed as i64);
+    let untrained_vs = tch::nn::VarStore::new(tch::Device::Cpu);
+    let untrained = MtaPredNet::f_new(&untrained_vs.root(), &ck.config)?;
     let skip = ck.config.frame_skip.max(1) as usize;
     let mut world = mtanet_scenes::World::new(scene)
         .with_context(|| format!("the track {}", scene.track.display()))?;
@@ -163,7 +170,7 @@ pub fn analyze_checkpoint(
     tracing::info!(steps, track = %scene.track.display(), "driving");
     let rec = mtanet_eval::drive::record_reactive(&mut world, steps, o.seed)?;
     let seq = Sequence::new(&rec, skip, scene.control_period_s);
-    let mut a = analyze(&model, world.track(), &seq, o)?;
+    let mut a = analyze(&model, Some(&untrained), world.track(), &seq, o)?;
     a.checkpoint = checkpoint.display().to_string();
     a.track = scene.track.display().to_string();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -210,9 +217,11 @@ impl Sequence {
     }
 }
 
-/// Timescales and read-outs of `model` over `seq` on `track`.
+/// Timescales and read-outs of `model` (and of `untrained`, the same network at its
+/// initialisation) over `seq` on `track`.
 pub fn analyze(
     model: &MtaPredNet,
+    untrained: Option<&MtaPredNet>,
     track: &mtanet_track::Track,
     seq: &Sequence,
     o: &Options,
@@ -223,31 +232,8 @@ pub fn analyze(
         "{} model steps are too few: drive longer (--sim-seconds)",
         seq.len()
     );
-    let data = Dataset::new(seq.images.unsqueeze(0), seq.actions.unsqueeze(0))?;
-    let states = mtanet_models::analysis::collect_states(model, &data, 1)?;
+    let (layers, mut sources) = layer_states(model, seq, o, "")?;
     let n = (seq.len() - skip) as i64;
-    let cut = |x: &Tensor| {
-        x.squeeze_dim(0)
-            .narrow(0, skip as i64, n)
-            .to_kind(Kind::Double)
-    };
-    let cfg = model.config();
-    let mut layers = Vec::new();
-    let mut sources: Vec<(String, Tensor)> = Vec::new();
-    for (l, (r, h)) in states.iter().enumerate() {
-        let (r, h) = (cut(r), cut(h));
-        let g = cfg.gus[l];
-        let per_unit = h.view([n, g, -1]);
-        layers.push(LayerTimescales {
-            layer: l,
-            tau: cfg.tau[l],
-            r: timescale(&r, &o.timescale),
-            units: (0..g)
-                .map(|d| timescale(&per_unit.select(1, d), &o.timescale))
-                .collect(),
-        });
-        sources.push((format!("R_{l}"), r));
-    }
     let frames = seq.images.flatten(1, -1).to_kind(Kind::Double);
     let stacked = Tensor::cat(
         &(0..5)
@@ -257,6 +243,12 @@ pub fn analyze(
     );
     sources.push(("frame".into(), frames.narrow(0, skip as i64, n)));
     sources.push(("frames_5".into(), stacked));
+    let mut layers_untrained = Vec::new();
+    if let Some(u) = untrained {
+        let (l, s) = layer_states(u, seq, o, " untrained")?;
+        layers_untrained = l;
+        sources.extend(s);
+    }
 
     let t = Targets::new(track, &seq.truth[skip..], seq.step_s);
     let laps = t.laps.last().copied().unwrap_or(0) + 1;
@@ -291,6 +283,7 @@ pub fn analyze(
         laps,
         mean_speed_mps: t.mean_speed_mps,
         layers,
+        layers_untrained,
         targets: TARGETS
             .iter()
             .map(|(a, b)| (a.to_string(), b.to_string()))
@@ -299,4 +292,37 @@ pub fn analyze(
         bend_curvature_per_m: targets::BEND_CURVATURE_PER_M,
         curvature_half_window_m: targets::CURVATURE_HALF_WINDOW_M,
     })
+}
+
+/// Per layer of `model` over `seq` (after the transient): its timescales, and its R_l named
+/// `R_<l><suffix>` for the read-outs.
+fn layer_states(
+    model: &MtaPredNet,
+    seq: &Sequence,
+    o: &Options,
+    suffix: &str,
+) -> anyhow::Result<(Vec<LayerTimescales>, Vec<(String, Tensor)>)> {
+    let skip = o.transient_steps as i64;
+    let data = Dataset::new(seq.images.unsqueeze(0), seq.actions.unsqueeze(0))?;
+    let states = mtanet_models::analysis::collect_states(model, &data, 1)?;
+    let n = seq.len() as i64 - skip;
+    let cut = |x: &Tensor| x.squeeze_dim(0).narrow(0, skip, n).to_kind(Kind::Double);
+    let cfg = model.config();
+    let mut layers = Vec::new();
+    let mut sources = Vec::new();
+    for (l, (r, h)) in states.iter().enumerate() {
+        let (r, h) = (cut(r), cut(h));
+        let g = cfg.gus[l];
+        let per_unit = h.view([n, g, -1]);
+        layers.push(LayerTimescales {
+            layer: l,
+            tau: cfg.tau[l],
+            r: timescale(&r, &o.timescale),
+            units: (0..g)
+                .map(|d| timescale(&per_unit.select(1, d), &o.timescale))
+                .collect(),
+        });
+        sources.push((format!("R_{l}{suffix}"), r));
+    }
+    Ok((layers, sources))
 }

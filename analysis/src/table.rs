@@ -25,29 +25,31 @@ pub fn print_table(a: &Analysis, out: &mut impl Write) -> std::io::Result<()> {
         out,
         "\nTimescale: e-folding time of the autocorrelation, model steps [95% block bootstrap] (seconds)"
     )?;
-    writeln!(out, "{:<6} {:>5}  {:<32} units", "layer", "tau", "R_l")?;
-    for l in &a.layers {
-        let units: Vec<String> = l.units.iter().map(|u| steps(u, a.step_s)).collect();
-        writeln!(
-            out,
-            "{:<6} {:>5.2}  {:<32} {}",
-            l.layer,
-            l.tau,
-            steps(&l.r, a.step_s),
-            units.join("; ")
-        )?;
+    writeln!(out, "{:<16} {:>5}  {:<32} units", "layer", "tau", "R_l")?;
+    for (net, layers) in [("", &a.layers), (" untrained", &a.layers_untrained)] {
+        for l in layers {
+            let units: Vec<String> = l.units.iter().map(|u| steps(u, a.step_s)).collect();
+            writeln!(
+                out,
+                "{:<16} {:>5.2}  {:<32} {}",
+                format!("{}{net}", l.layer),
+                l.tau,
+                steps(&l.r, a.step_s),
+                units.join("; ")
+            )?;
+        }
     }
     writeln!(
         out,
         "\nContext: cross-validated R^2 of ridge read-outs (folds by lap; frame baselines see one frame more than R_l)"
     )?;
-    write!(out, "{:<10} {:>8}", "state", "features")?;
+    write!(out, "{:<14} {:>8}", "state", "features")?;
     for (name, _) in &a.targets {
         write!(out, " {name:>15}")?;
     }
     writeln!(out)?;
     for row in &a.context {
-        write!(out, "{:<10} {:>8}", row.source, row.features)?;
+        write!(out, "{:<14} {:>8}", row.source, row.features)?;
         for r in &row.readouts {
             write!(out, " {:>15.3}", r.r2)?;
         }

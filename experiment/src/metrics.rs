@@ -39,14 +39,16 @@ pub struct Metrics {
     pub context_curvature_1s_r1: Option<f64>,
     pub context_curvature_1s_r2: Option<f64>,
     pub context_curvature_1s_frames5: Option<f64>,
+    pub context_curvature_1s_r2_untrained: Option<f64>,
     pub context_since_bend_r0: Option<f64>,
     pub context_since_bend_r1: Option<f64>,
     pub context_since_bend_r2: Option<f64>,
     pub context_since_bend_frames5: Option<f64>,
+    pub context_since_bend_r2_untrained: Option<f64>,
 }
 
 /// The metric columns in results.csv order, with what each means (summary.md, plots).
-pub const NAMES: [(&str, &str); 24] = [
+pub const NAMES: [(&str, &str); 26] = [
     (
         "takeover_s",
         "simulated s until active inference first drives and then holds the wheel >= 90% of the next 60 s",
@@ -110,6 +112,10 @@ pub const NAMES: [(&str, &str); 24] = [
         "the same from the last 5 frames stacked (baseline)",
     ),
     (
+        "context_curvature_1s_r2_untrained",
+        "the same from R_2 of the untrained network (baseline)",
+    ),
+    (
         "context_since_bend_r0",
         "R^2 of the cross-validated read-out of the line length since the last bend from R_0",
     ),
@@ -119,11 +125,15 @@ pub const NAMES: [(&str, &str); 24] = [
         "context_since_bend_frames5",
         "the same from the last 5 frames stacked (baseline)",
     ),
+    (
+        "context_since_bend_r2_untrained",
+        "the same from R_2 of the untrained network (baseline)",
+    ),
 ];
 
 impl Metrics {
     /// The values in [`NAMES`] order.
-    pub fn values(&self) -> [Option<f64>; 24] {
+    pub fn values(&self) -> [Option<f64>; 26] {
         [
             self.takeover_s,
             self.laps,
@@ -145,10 +155,12 @@ impl Metrics {
             self.context_curvature_1s_r1,
             self.context_curvature_1s_r2,
             self.context_curvature_1s_frames5,
+            self.context_curvature_1s_r2_untrained,
             self.context_since_bend_r0,
             self.context_since_bend_r1,
             self.context_since_bend_r2,
             self.context_since_bend_frames5,
+            self.context_since_bend_r2_untrained,
         ]
     }
 
@@ -181,10 +193,12 @@ impl Metrics {
         self.context_curvature_1s_r1 = r2("R_1", c);
         self.context_curvature_1s_r2 = r2("R_2", c);
         self.context_curvature_1s_frames5 = r2("frames_5", c);
+        self.context_curvature_1s_r2_untrained = r2("R_2 untrained", c);
         self.context_since_bend_r0 = r2("R_0", b);
         self.context_since_bend_r1 = r2("R_1", b);
         self.context_since_bend_r2 = r2("R_2", b);
         self.context_since_bend_frames5 = r2("frames_5", b);
+        self.context_since_bend_r2_untrained = r2("R_2 untrained", b);
     }
 
     /// A run folder's metrics (without the held-out error).
