@@ -245,4 +245,40 @@ mod tests {
         assert!(near(&px, BLUE) > 300, "the loss curve");
         assert!(near(&px, GREEN) > 200, "the probe");
     }
+
+    #[test]
+    fn names_categories_on_the_x_axis() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("categories.png");
+        let panel = Panel {
+            title: "R^2",
+            y_label: "R^2",
+            series: vec![Series {
+                name: "curvature",
+                colour: BLUE,
+                points: vec![(0.0, 0.5), (1.0, 0.7), (2.0, 0.2)],
+            }],
+            refs: vec![(0.0, "mean")],
+            log_y: false,
+            y_range: None,
+        };
+        category_chart(&path, "read out from", &["R_0", "R_1", "frame"], &[panel]).unwrap();
+        let (w, h, px) = decode(&path);
+        assert_eq!((w, h), (WIDTH, PANEL_HEIGHT));
+        assert!(near(&px, BLUE) > 200, "the series");
+        let axis = XAxis {
+            label: "",
+            range: (-0.5, 2.5),
+            names: &["a", "b", "c"],
+        };
+        assert_eq!(
+            [
+                axis.tick(0.0),
+                axis.tick(0.5),
+                axis.tick(2.0),
+                axis.tick(3.0)
+            ],
+            ["a", "", "c", ""].map(String::from)
+        );
+    }
 }

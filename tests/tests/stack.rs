@@ -91,6 +91,47 @@ fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
     assert_namespace_clean(&ns);
 }
 
+/// Lockstep without a trainer (an evaluation run) waits for a late command as long as the
+/// predictor lives: a predictor stopped for 1 s (five times the per-step timeout) costs time,
+/// not steps driven by a stand-in, so a loaded machine drives the same run.
+#[test]
+fn lockstep_without_a_trainer_waits_out_a_stopped_predictor() {
+    // Long enough (several seconds) that the stop falls inside the run.
+    const STEPS: u64 = 20_000;
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("ls");
+    let run = Run {
+        max_steps: Some(STEPS),
+        ..run_in(&ns, dir.path())
+    };
+    let mut predictor = start("mta-predictor", &run, &[], dir.path());
+    wait_for_alive(&ns, 1, Duration::from_secs(30));
+    let mut sim = start("mta-simulator", &run, &[], dir.path());
+    let stats = StatsWatch::open(&ns);
+    stats.wait_for("predictor", Duration::from_secs(30), |s| s.count > 0);
+    predictor.signal(libc::SIGSTOP);
+    std::thread::sleep(Duration::from_secs(1)); // the fault itself: a stopped process
+    predictor.signal(libc::SIGCONT);
+    assert!(
+        sim.is_running(),
+        "the run ended before the stop was over: make it longer"
+    );
+    drop(stats);
+    let status = sim.wait(Duration::from_secs(120));
+    assert!(
+        status.success(),
+        "simulator failed: {status}\n{}",
+        sim.log_tail()
+    );
+    predictor.signal(SIGTERM);
+    exit_ok(&mut predictor);
+    let s: SimulatorSummary = read_json(&summary(&run, "mta-simulator"));
+    assert_eq!(s.steps, STEPS);
+    assert_eq!(s.commands_received, STEPS, "{s:?}");
+    assert_eq!((s.missed_commands, s.teacher_steps), (0, 0), "{s:?}");
+    assert_namespace_clean(&ns);
+}
+
 #[test]
 fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
     let dir = tempfile::tempdir().unwrap();

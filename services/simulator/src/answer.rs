@@ -16,6 +16,8 @@ use crate::summary::Summary;
 
 /// Consecutive missed commands after which the simulator checks for a dead predictor.
 const MISSES_BEFORE_CLEANUP: u32 = 3;
+/// A lockstep wait this long is logged (once per step): a stopped predictor, say.
+const LONG_WAIT: Duration = Duration::from_secs(10);
 
 pub struct Answers {
     wait: Duration,
@@ -24,9 +26,6 @@ pub struct Answers {
     /// The last command the world accepted (what `Hold` repeats).
     pub last: [f32; 2],
     misses_in_a_row: u32,
-    /// Lockstep learning: a late answer is waited for as long as the predictor lives (a
-    /// stand-in would make the run depend on the machine's speed).
-    pub patient: bool,
     /// Observation published -> its command received.
     pub round_trip: LatencyStats,
     /// Command published by the predictor -> taken in here.
@@ -47,7 +46,6 @@ impl Answers {
             on_miss: cfg.on_missed_command,
             last: [0.0; 2],
             misses_in_a_row: 0,
-            patient: false,
             round_trip: LatencyStats::new(),
             cmd_to_sim: LatencyStats::new(),
         }
@@ -72,14 +70,25 @@ impl Answers {
         let wait = if predictor { self.wait } else { Duration::ZERO };
         let stale = &mut summary.stale_commands;
         let mut answer = await_command(ports, frame.step, wait, shutdown, stale)?;
+        // Lockstep waits for a late answer as long as the predictor lives: a stand-in would
+        // make the run depend on the machine's speed (an evaluation run on a loaded machine
+        // would be driven partly by the teacher). A dead predictor's node is cleaned and ends it.
+        let since = Instant::now();
+        let mut said = false;
         while answer.is_none()
-            && self.patient
             && self.lockstep
             && !shutdown.requested()
             && ports.commands.publishers() > 0
         {
             if clean_dead_nodes(node, &mut summary.dead_nodes_cleaned) > 0 {
                 break;
+            }
+            if !said && since.elapsed() > LONG_WAIT {
+                said = true;
+                tracing::warn!(
+                    step = frame.step,
+                    "lockstep: still waiting for the predictor's command"
+                );
             }
             answer = await_command(ports, frame.step, wait, shutdown, stale)?;
         }

@@ -32,8 +32,9 @@ pub enum MissPolicy {
 #[serde(default, deny_unknown_fields)]
 pub struct SimulatorConfig {
     pub mode: Mode,
-    /// How long a step waits for its command before the miss policy applies (realtime: at most
-    /// half a control period).
+    /// Realtime: how long a step waits for its command before the miss policy applies (at most
+    /// half a control period). Lockstep waits as long as the predictor lives, checking for a
+    /// dead one every this long; the miss policy applies only once none is connected.
     pub command_timeout_ms: u64,
     pub on_missed_command: MissPolicy,
     /// Lockstep: wait this long at start for a predictor (and a trainer, if expected) to connect;

@@ -128,14 +128,6 @@ impl Pace {
         })
     }
 
-    /// A trainer's schedule is in force: weights are due at fixed steps, and a lockstep step
-    /// waits for its command as long as the predictor lives.
-    pub fn scheduled(&self, rx: &Receiver<TrainerStatus>) -> bool {
-        self.enabled
-            && rx.publishers() > 0
-            && self.latest.is_some_and(|s| s.next_install_step != u64::MAX)
-    }
-
     pub fn summary(&self, step: u64) -> PaceSummary {
         let mut s = PaceSummary {
             target_updates_per_1000_steps: if self.enabled { self.rate } else { 0.0 },

@@ -79,7 +79,6 @@ pub fn run(
         let step = car.steps();
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         pace.wait_for_weights(&ports.trainer_status, step, shutdown, &mut watchdog)?;
-        answers.patient = pace.scheduled(&ports.trainer_status);
         let t0 = clock.begin(step);
         let t0_ns = stamp::monotonic_ns();
         let frame = car.sense();
