@@ -43,6 +43,11 @@ pub struct ExperimentArgs {
     /// Check the experiment and every variant's config, print what would run, run nothing.
     #[arg(long)]
     pub check: bool,
+    /// Run no cell: analyse the finished cells that lack their analysis and rebuild
+    /// results.csv, summary.md and the plots from them (while another invocation still runs
+    /// cells elsewhere, say, or to look at an interrupted experiment).
+    #[arg(long, conflicts_with = "check")]
+    pub summary_only: bool,
     /// Prefix of the runs' iceoryx2 namespaces (at most 24 letters, digits, '-' or '_'; each
     /// run adds `c<cell>r<run>`); default: one no other stack uses.
     #[arg(long)]
@@ -68,9 +73,12 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
         .map(|c| c.state())
         .collect::<anyhow::Result<Vec<_>>>()?;
     let todo: Vec<usize> = (0..cells.len())
-        .filter(|&i| !matches!(states[i], State::Done(_)))
+        .filter(|&i| !args.summary_only && !matches!(states[i], State::Done(_)))
         .collect();
-    let done = cells.len() - todo.len();
+    let done = states
+        .iter()
+        .filter(|s| matches!(s, State::Done(_)))
+        .count();
     eprintln!(
         "[experiment] {}: {} cells ({} variants x {} seeds), {done} finished, {} to run; base config {origin}",
         spec.name,

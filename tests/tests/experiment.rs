@@ -12,13 +12,14 @@ use mtanet_experiment::metrics::NAMES;
 use mtanet_report::Report;
 use mtanet_system_tests::{bin, here, unique_namespace};
 
-/// Runs `mta experiment FILE --jobs N` from the repository root; its success and its output.
-fn run(file: &Path, out: &Path, ns: &str, jobs: u32, log: &Path) -> (bool, String) {
+/// Runs `mta experiment FILE ARGS` from the repository root; its success and its output.
+fn run(file: &Path, out: &Path, ns: &str, args: &[&str], log: &Path) -> (bool, String) {
     let status = Command::new(bin("mta"))
         .current_dir(here().join(".."))
         .arg("experiment")
         .arg(file)
-        .args(["--namespace", ns, "--jobs", &jobs.to_string()])
+        .args(["--namespace", ns])
+        .args(args)
         .arg("--out")
         .arg(out)
         .stderr(std::fs::File::create(log).unwrap())
@@ -30,8 +31,8 @@ fn run(file: &Path, out: &Path, ns: &str, jobs: u32, log: &Path) -> (bool, Strin
     )
 }
 
-fn experiment(out: &Path, ns: &str, jobs: u32, log: &Path) -> String {
-    let (ok, text) = run(Path::new("experiments/smoke.toml"), out, ns, jobs, log);
+fn experiment(out: &Path, ns: &str, args: &[&str], log: &Path) -> String {
+    let (ok, text) = run(Path::new("experiments/smoke.toml"), out, ns, args, log);
     assert!(ok, "mta experiment failed\n{text}");
     text
 }
@@ -84,7 +85,7 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("smoke");
     let ns = unique_namespace("xt");
-    experiment(&out, &ns, 2, &dir.path().join("first.log"));
+    experiment(&out, &ns, &["--jobs", "2"], &dir.path().join("first.log"));
 
     let (header, rows) = table(&out);
     let mut want_header = vec!["variant", "seed", "phase", "track"];
@@ -202,7 +203,7 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         .unwrap()
         .modified()
         .unwrap();
-    let log = experiment(&out, &ns, 2, &dir.path().join("second.log"));
+    let log = experiment(&out, &ns, &["--jobs", "2"], &dir.path().join("second.log"));
     assert!(log.contains("2 finished, 0 to run"), "{log}");
     assert_eq!(finished_files(&out), before, "a finished cell ran again");
     let again = std::fs::metadata(out.join("paper/0/analysis/analysis.json"))
@@ -212,10 +213,23 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
     assert_eq!(again, analysed, "a finished analysis ran again");
     assert_eq!(table(&out), (header.clone(), rows.clone()));
 
+    // --summary-only runs no cell but remakes a missing analysis and the table.
+    std::fs::remove_dir_all(out.join("paper/0/analysis")).unwrap();
+    std::fs::remove_file(out.join("results.csv")).unwrap();
+    let log = experiment(
+        &out,
+        &ns,
+        &["--summary-only"],
+        &dir.path().join("summary.log"),
+    );
+    assert!(log.contains("2 finished, 0 to run"), "{log}");
+    assert_eq!(finished_files(&out), before, "a finished cell ran again");
+    assert_eq!(table(&out), (header.clone(), rows.clone()));
+
     // The same cell run alone learns and drives the same (lockstep is deterministic): its rows
     // come back identical, latencies and wall time aside (results.csv has neither).
     std::fs::remove_dir_all(out.join("flat")).unwrap();
-    let log = experiment(&out, &ns, 1, &dir.path().join("third.log"));
+    let log = experiment(&out, &ns, &["--jobs", "1"], &dir.path().join("third.log"));
     assert!(log.contains("1 finished, 1 to run"), "{log}");
     assert_eq!(table(&out), (header, rows), "--jobs 1 and --jobs 2 differ");
 }
@@ -235,7 +249,7 @@ fn a_failed_cell_is_reported_with_its_log_and_retried() {
     .unwrap();
     let out = dir.path().join("out");
     let ns = unique_namespace("xf");
-    let (ok, log) = run(&file, &out, &ns, 1, &dir.path().join("first.log"));
+    let (ok, log) = run(&file, &out, &ns, &[], &dir.path().join("first.log"));
     assert!(!ok, "a failed cell fails the command\n{log}");
     let failure = out.join("paper/0/failed.json");
     let text =
@@ -250,7 +264,7 @@ fn a_failed_cell_is_reported_with_its_log_and_retried() {
         "{md}"
     );
     assert!(!out.join("paper/0/cell.json").exists());
-    let (ok, log) = run(&file, &out, &ns, 1, &dir.path().join("second.log"));
+    let (ok, log) = run(&file, &out, &ns, &[], &dir.path().join("second.log"));
     assert!(
         !ok && log.contains("0 finished, 1 to run"),
         "retried:\n{log}"
