@@ -74,7 +74,8 @@ pub fn one_minute_soak(dir: &Path, config: &Path, extra: &[&str]) -> SoakReport 
 }
 
 /// A stack config with a small network, so a test's trainer learns and publishes within
-/// seconds: training from `min_sequences` chunks, weights every `publish_every` updates.
+/// seconds: training from `min_sequences` chunks, weights every `publish_every` updates; every
+/// frame a model step and no imagined steps, the cheapest windows to learn from.
 pub fn small_trainer(min_sequences: u32, publish_every: u32) -> String {
     format!(
         r#"
@@ -86,8 +87,10 @@ channels = [4, 4, 4]
 a_channels = [1, 4, 4]
 action_offset = [8.0, 8.0]
 action_scale = [5.0, 5.0]
+frame_skip = 1
 [trainer.train]
 batch_size = 4
+imagined_steps = 0
 "#
     )
 }

@@ -37,11 +37,16 @@ pub struct TrainerConfig {
     pub log_every_s: f64,
     /// libtorch intra-op threads (1: never starve the predictor of the second core).
     pub torch_threads: i32,
-    /// `[trainer.model]`: the network trained online.
+    /// `[trainer.model]`: the network trained online. Keys a table leaves out keep the
+    /// trainer's defaults (below), not the bare `ModelConfig`'s: `tau = [1, 1, 1]` alone must
+    /// not also change the frame skip and the action scaling.
+    #[serde(deserialize_with = "model_over_defaults")]
     pub model: ModelConfig,
-    /// `[trainer.train]`: optimiser and batch settings.
+    /// `[trainer.train]`: optimiser and batch settings (missing keys: the trainer's defaults).
+    #[serde(deserialize_with = "train_over_defaults")]
     pub train: TrainConfig,
     /// `[trainer.probe]`: states, horizon and commands of the counterfactual probe.
+    #[serde(deserialize_with = "probe_over_defaults")]
     pub probe: ProbeConfig,
 }
 
@@ -78,5 +83,78 @@ impl Default for TrainerConfig {
             },
             probe: ProbeConfig::default(),
         }
+    }
+}
+
+/// `table` merged over `default` key by key (nested tables too), then typed: what a partial
+/// sub-table of `[trainer]` means.
+fn over_defaults<'de, D, T>(d: D, default: T) -> Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Serialize + serde::de::DeserializeOwned,
+{
+    use serde::de::Error;
+    let given = toml::Table::deserialize(d)?;
+    let mut merged = toml::Table::try_from(default).map_err(D::Error::custom)?;
+    merge(&mut merged, given);
+    merged.try_into().map_err(D::Error::custom)
+}
+
+fn merge(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+fn model_over_defaults<'de, D: serde::Deserializer<'de>>(d: D) -> Result<ModelConfig, D::Error> {
+    over_defaults(d, TrainerConfig::default().model)
+}
+
+fn train_over_defaults<'de, D: serde::Deserializer<'de>>(d: D) -> Result<TrainConfig, D::Error> {
+    over_defaults(d, TrainerConfig::default().train)
+}
+
+fn probe_over_defaults<'de, D: serde::Deserializer<'de>>(d: D) -> Result<ProbeConfig, D::Error> {
+    over_defaults(d, TrainerConfig::default().probe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<TrainerConfig, toml::de::Error> {
+        toml::from_str(text)
+    }
+
+    /// A variant that changes only the taus keeps the trainer's frame skip, action scaling and
+    /// imagined steps; a key of its own replaces only itself.
+    #[test]
+    fn a_partial_model_or_train_table_keeps_the_trainers_other_defaults() {
+        let d = TrainerConfig::default();
+        let c = parse("[model]\ntau = [1.0, 1.0, 1.0]\n[train]\nbatch_size = 4\n").unwrap();
+        assert_eq!(c.model.tau, vec![1.0, 1.0, 1.0]);
+        assert_eq!(c.model.frame_skip, d.model.frame_skip);
+        assert_eq!(c.model.frame_skip, 5);
+        assert_eq!(c.model.action_offset, d.model.action_offset);
+        assert_eq!(c.model.action_scale, d.model.action_scale);
+        assert_eq!(c.model.channels, d.model.channels);
+        assert_eq!(c.train.batch_size, 4);
+        assert_eq!(c.train.imagined_steps, d.train.imagined_steps);
+        let none = parse("min_sequences = 16\n").unwrap();
+        assert_eq!(none.model.frame_skip, 5);
+        assert_eq!(none.min_sequences, 16);
+    }
+
+    #[test]
+    fn an_unknown_key_in_a_sub_table_is_still_an_error_naming_it() {
+        let e = parse("[model]\ntaux = [1.0]\n").unwrap_err().to_string();
+        assert!(e.contains("taux"), "{e}");
+        let e = parse("[model]\ntau = \"slow\"\n").unwrap_err().to_string();
+        assert!(e.contains("tau") || e.contains("sequence"), "{e}");
     }
 }
