@@ -157,6 +157,10 @@ pub fn analyze_checkpoint(
     o: &Options,
     out: &Path,
 ) -> anyhow::Result<Analysis> {
+    // The same checkpoint and drive give the same bits: one thread for libtorch and for faer
+    // (a parallel reduction sums in whatever order its threads finish).
+    tch::set_num_threads(1);
+    faer::set_global_parallelism(faer::Par::Seq);
     let ck = mtanet_models::checkpoint::load(checkpoint)
         .with_context(|| format!("loading {}", checkpoint.display()))?;
     let (_vs, model) = ck.build()?;

@@ -80,12 +80,15 @@ fn weights(run: &Path) -> Learnt {
     (tensors, ck.meta.step, ck.meta.loss)
 }
 
-/// The report without what wall-clock time decides (latencies, wall seconds, overruns).
+/// The report without what wall-clock time decides (latencies, wall seconds, overruns, and the
+/// pace's updates per 1000 steps: counted from the step at which the simulator first saw the
+/// trainer training, which its status reaches when it reaches it; the updates are the same).
 fn timeless(mut r: Report) -> Report {
     r.latency.clear();
     r.wall_seconds = 0.0;
     r.overruns = 0;
     r.trainer.update_time = None;
+    r.trainer.updates_per_1000_steps = None;
     r
 }
 
