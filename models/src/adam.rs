@@ -154,7 +154,10 @@ mod tests {
 
     #[test]
     fn same_steps_as_libtorch_adam() {
-        let (ours_vs, theirs_vs) = (params(3), params(3));
+        // One draw copied: tests in this binary reseed the global RNG in parallel.
+        let ours_vs = params(3);
+        let mut theirs_vs = params(3);
+        theirs_vs.copy(&ours_vs).unwrap();
         let mut ours = Adam::new(&ours_vs, 0.01);
         let mut theirs = tch::nn::adam(0.9, 0.999, 0.0)
             .build(&theirs_vs, 0.01)
