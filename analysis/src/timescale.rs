@@ -12,6 +12,7 @@
 //! the resampled blocks' lag sums. Resampling features instead would pretend neighbouring
 //! channels are independent; resampling single steps would break the very correlation measured.
 
+use mtanet_summaries::quantile;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -94,8 +95,10 @@ pub fn timescale(x: &Tensor, o: &TimescaleOptions) -> Timescale {
         })
         .collect();
     boot.sort_by(f64::total_cmp);
-    let interval = (sums.blocks >= 2 && !boot.is_empty())
-        .then(|| [percentile(&boot, 0.025), percentile(&boot, 0.975)]);
+    let interval = match (quantile(&boot, 0.025), quantile(&boot, 0.975)) {
+        (Some(lo), Some(hi)) if sums.blocks >= 2 => Some([lo, hi]),
+        _ => None,
+    };
     Timescale {
         steps,
         interval,
@@ -113,12 +116,6 @@ pub fn e_folding(acf: &[f64]) -> Option<f64> {
     }
     let (a, b) = (acf[k - 1], acf[k]);
     Some((k - 1) as f64 + (a - target) / (a - b))
-}
-
-fn percentile(sorted: &[f64], q: f64) -> f64 {
-    let pos = q * (sorted.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    sorted[lo] + (sorted[hi] - sorted[lo]) * (pos - lo as f64)
 }
 
 /// Per block b and lag k: the sum over t in b of mean_features z(t) z(t+k), and how many t.

@@ -40,17 +40,7 @@ pub fn base(config: Option<&Path>) -> anyhow::Result<(toml::Table, String)> {
     })
 }
 
-/// Merges `over` into `base`: tables key by key, recursively; anything else replaces.
-pub fn merge(base: &mut toml::Table, over: &toml::Table) {
-    for (k, v) in over {
-        match (base.get_mut(k), v) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
-            _ => {
-                base.insert(k.clone(), v.clone());
-            }
-        }
-    }
-}
+pub use mtanet_files::merge_tables as merge;
 
 fn get<'a>(t: &'a toml::Table, dotted: &str) -> Option<&'a toml::Value> {
     let (path, last) = dotted.rsplit_once('.').unwrap_or(("", dotted));

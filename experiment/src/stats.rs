@@ -5,17 +5,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// The `q` quantile (0..=1) of `sorted` by linear interpolation between order statistics
-/// (numpy's default, "type 7"); `None` for no values.
-pub fn quantile(sorted: &[f64], q: f64) -> Option<f64> {
-    let n = sorted.len();
-    if n == 0 {
-        return None;
-    }
-    let h = (n - 1) as f64 * q.clamp(0.0, 1.0);
-    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
-    Some(sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo]))
-}
+pub use mtanet_summaries::quantile;
 
 fn sorted(values: &[f64]) -> Vec<f64> {
     let mut v = values.to_vec();

@@ -132,6 +132,19 @@ pub fn write_npz(path: &Path, arrays: &[NpzArray]) -> Result<(), FileError> {
     })
 }
 
+/// Merges `over` into `base`: tables key by key, recursively; anything else replaces (how a
+/// config's overrides and a partial sub-table meet their defaults).
+pub fn merge_tables(base: &mut toml::Table, over: &toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
+            _ => {
+                base.insert(k.clone(), v.clone());
+            }
+        }
+    }
+}
+
 /// Reads a TOML file as a table (for configs that are merged or split before they are typed).
 pub fn read_table(path: &Path) -> Result<toml::Table, FileError> {
     read_toml(path)

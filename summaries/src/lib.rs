@@ -20,6 +20,18 @@ pub use latency::LatencySummary;
 pub use planning::PlanningSummary;
 pub use source::CommandSource;
 
+/// The `q` quantile (0..=1) of `sorted` by linear interpolation between order statistics
+/// (numpy's default, "type 7"); `None` for no values.
+pub fn quantile(sorted: &[f64], q: f64) -> Option<f64> {
+    let n = sorted.len();
+    if n == 0 {
+        return None;
+    }
+    let h = (n - 1) as f64 * q.clamp(0.0, 1.0);
+    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
+    Some(sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo]))
+}
+
 /// Simulated seconds between two observations (the paper's 0.02 s): steps to seconds in
 /// reports. `mtanet_ipc::CONTROL_PERIOD_S` is checked equal to it at compile time.
 pub const CONTROL_PERIOD_S: f64 = 0.02;

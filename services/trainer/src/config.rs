@@ -96,19 +96,8 @@ where
     use serde::de::Error;
     let given = toml::Table::deserialize(d)?;
     let mut merged = toml::Table::try_from(default).map_err(D::Error::custom)?;
-    merge(&mut merged, given);
+    mtanet_files::merge_tables(&mut merged, &given);
     merged.try_into().map_err(D::Error::custom)
-}
-
-fn merge(base: &mut toml::Table, over: toml::Table) {
-    for (k, v) in over {
-        match (base.get_mut(&k), v) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
-            (_, v) => {
-                base.insert(k, v);
-            }
-        }
-    }
 }
 
 fn model_over_defaults<'de, D: serde::Deserializer<'de>>(d: D) -> Result<ModelConfig, D::Error> {
