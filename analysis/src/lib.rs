@@ -3,7 +3,7 @@
 //! drives a track with the reactive rule (seeded exploration, as the probe and the held-out drive
 //! do), steps the model over the frames at its own frame skip, and measures per layer
 //! - its timescale: the e-folding time of R_l's and of each generative unit's autocorrelation
-//!   (`timescale.rs`), with a block-bootstrap interval;
+//!   (`mtanet_models::timescale`), with a block-bootstrap interval;
 //! - its context: cross-validated ridge read-outs (folds by lap, `readout.rs`) from R_l to the
 //!   curvature ahead, the heading error and lateral offset now, and the distance since the last
 //!   bend (`targets.rs`), beside the same read-outs from the raw frame, from the last 5
@@ -17,22 +17,22 @@ mod figures;
 pub mod readout;
 mod table;
 pub mod targets;
-pub mod timescale;
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use mtanet_eval::drive::Recorded;
 use mtanet_models::MtaPredNet;
+use mtanet_models::analysis::{LayerTimescales, collect_states, layer_timescales};
 use mtanet_models::data::Dataset;
 use mtanet_models::sequences::push_window;
+use mtanet_models::timescale::TimescaleOptions;
 use mtanet_scenes::SceneConfig;
 use serde::{Deserialize, Serialize};
 use tch::{Kind, Tensor};
 
 use crate::readout::{Folds, Readout, ridge_cv};
 use crate::targets::{TARGETS, Targets};
-use crate::timescale::{Timescale, TimescaleOptions, timescale};
 
 pub use table::print_table;
 
@@ -105,16 +105,6 @@ pub struct Analysis {
     /// How the targets are defined (`targets.rs`).
     pub bend_curvature_per_m: f64,
     pub curvature_half_window_m: f64,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct LayerTimescales {
-    pub layer: usize,
-    pub tau: f64,
-    /// R_l(t), the action-weighted mix of the units.
-    pub r: Timescale,
-    /// Each generative unit's own output h^d_l(t) (its leaky state), unit 0 first.
-    pub units: Vec<Timescale>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -308,25 +298,17 @@ fn layer_states(
 ) -> anyhow::Result<(Vec<LayerTimescales>, Vec<(String, Tensor)>)> {
     let skip = o.transient_steps as i64;
     let data = Dataset::new(seq.images.unsqueeze(0), seq.actions.unsqueeze(0))?;
-    let states = mtanet_models::analysis::collect_states(model, &data, 1)?;
+    let states = collect_states(model, &data, 1)?;
     let n = seq.len() as i64 - skip;
-    let cut = |x: &Tensor| x.squeeze_dim(0).narrow(0, skip, n).to_kind(Kind::Double);
-    let cfg = model.config();
-    let mut layers = Vec::new();
-    let mut sources = Vec::new();
-    for (l, (r, h)) in states.iter().enumerate() {
-        let (r, h) = (cut(r), cut(h));
-        let g = cfg.gus[l];
-        let per_unit = h.view([n, g, -1]);
-        layers.push(LayerTimescales {
-            layer: l,
-            tau: cfg.tau[l],
-            r: timescale(&r, &o.timescale),
-            units: (0..g)
-                .map(|d| timescale(&per_unit.select(1, d), &o.timescale))
-                .collect(),
-        });
-        sources.push((format!("R_{l}{suffix}"), r));
-    }
+    let states: Vec<_> = (states.iter())
+        .map(|(r, h)| (r.narrow(1, skip, n), h.narrow(1, skip, n)))
+        .collect();
+    let layers = layer_timescales(model, &states, &o.timescale);
+    let sources = (states.iter().enumerate())
+        .map(|(l, (r, _))| {
+            let r = r.squeeze_dim(0).to_kind(Kind::Double);
+            (format!("R_{l}{suffix}"), r)
+        })
+        .collect();
     Ok((layers, sources))
 }

@@ -3,7 +3,7 @@
 use std::io::Write;
 
 use crate::Analysis;
-use crate::timescale::Timescale;
+use mtanet_models::timescale::Timescale;
 
 fn steps(t: &Timescale, step_s: f64) -> String {
     match (t.steps, t.interval) {

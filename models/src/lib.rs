@@ -7,7 +7,7 @@
 //!   `tch::no_grad_guard()` so the state carries no autograd graph.
 //! - Trainer: [`Trainer::update`] on `[B, T, H, W]` windows (or [`Trainer::update_from`] to carry
 //!   the state across windows), [`Trainer::checkpoint_bytes`] to publish weights.
-//! - Offline: `mta train` / `mta synth`, [`analysis::analyse`] for metrics, slowness and figure.
+//! - Offline: `mta train` / `mta synth`, [`analysis::analyse`] for metrics, layer timescales and figure.
 //!
 //! libtorch should run with one intra-op thread (`tch::set_num_threads(1)`): on 2 shared cores
 //! two threads collapse 5-50x when another process holds a core (docs/measurements.md), and at 8x12 the ops
@@ -30,6 +30,7 @@ pub mod reference;
 pub mod sequences;
 pub mod state;
 pub mod synth;
+pub mod timescale;
 pub mod train;
 pub mod units;
 

@@ -1,6 +1,6 @@
 //! `mta figures`: regenerates a run's analysis from a checkpoint without training: the paper's
 //! strip (original, predicted, first GU's output per layer at chosen frames) as figure.png, and
-//! analysis.json (held-out metrics and the slowness of each layer).
+//! analysis.json (held-out metrics and the timescale of each layer).
 
 use std::path::PathBuf;
 

@@ -60,7 +60,7 @@ struct RunConfig {
 #[derive(Serialize)]
 struct Metrics<'a> {
     /// Held-out metrics of the final weights (mse, copy_last_mse, mean_frame_mse,
-    /// mse_shuffled_actions, slowness, figure, notes).
+    /// mse_shuffled_actions, timescales, figure, notes).
     #[serde(flatten)]
     report: &'a analysis::AnalysisReport,
     updates: u64,

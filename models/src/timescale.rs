@@ -1,13 +1,14 @@
 //! How slowly a signal forgets: the e-folding time of its autocorrelation.
 //!
-//! The signal is a `[T, D]` series (T model steps of D features: a layer's channels x positions).
-//! Each feature is standardised over the drive, the autocorrelation at lag k is averaged over
-//! features and time, and the e-folding time is the lag at which it first falls below 1/e
+//! The signal is a `[T, D]` series (T model steps of D features: a layer's channels x positions),
+//! or `[N, T, D]`: N sequences of it (held-out data), whose lags never cross from one sequence
+//! into the next. Each feature is standardised over all steps, the autocorrelation at lag k is
+//! averaged over features and time, and the e-folding time is the lag at which it first falls below 1/e
 //! (linear between the two lags around the crossing). An AR(1) process x(t) = phi x(t-1) + noise
 //! has autocorrelation phi^k, so its e-folding time is -1/ln(phi) steps: the time constant a
 //! leaky unit of tau steps would have if it only integrated noise.
 //!
-//! The interval is a block bootstrap: the drive is cut into blocks much longer than the
+//! The interval is a block bootstrap: each sequence is cut into blocks much longer than the
 //! timescale, blocks are resampled with replacement, and the autocorrelation is recomputed from
 //! the resampled blocks' lag sums. Resampling features instead would pretend neighbouring
 //! channels are independent; resampling single steps would break the very correlation measured.
@@ -23,7 +24,8 @@ use tch::{Kind, Tensor};
 pub struct TimescaleOptions {
     /// Longest lag considered (steps); a signal still above 1/e there has no estimate.
     pub max_lag: usize,
-    /// Block length of the bootstrap (steps): several times the longest timescale expected.
+    /// Block length of the bootstrap (steps): several times the longest timescale expected. A
+    /// sequence shorter than this is one block.
     pub block: usize,
     /// Bootstrap resamples.
     pub resamples: usize,
@@ -57,12 +59,16 @@ pub struct Timescale {
     pub autocorrelation: Vec<f64>,
 }
 
-/// Timescale of `x` `[T, D]`.
+/// Timescale of `x`: `[T, D]` (one series) or `[N, T, D]` (N sequences of T steps).
 pub fn timescale(x: &Tensor, o: &TimescaleOptions) -> Timescale {
-    let (t, d) = (x.size()[0], x.size()[1]);
+    let x = match x.dim() {
+        2 => x.unsqueeze(0),
+        _ => x.shallow_clone(),
+    };
+    let (t, d) = (x.size()[1], x.size()[2]);
     let x = x.to_kind(Kind::Double);
-    let mean = x.mean_dim([0i64].as_slice(), true, Kind::Double);
-    let std = x.std_dim([0i64].as_slice(), false, true);
+    let mean = x.mean_dim([0i64, 1].as_slice(), true, Kind::Double);
+    let std = x.flatten(0, 1).std_dim([0i64].as_slice(), false, true);
     let varies: Vec<bool> = Vec::<f64>::try_from(std.flatten(0, -1))
         .unwrap_or_default()
         .iter()
@@ -81,7 +87,7 @@ pub fn timescale(x: &Tensor, o: &TimescaleOptions) -> Timescale {
         return empty;
     }
     let idx = Tensor::from_slice(&used);
-    let z = ((x - mean) / std.clamp_min(1e-12)).index_select(1, &idx);
+    let z = ((x - mean) / std.clamp_min(1e-12)).index_select(2, &idx);
     let sums = LagSums::of(&z, max_lag, o.block.max(max_lag + 1));
     let acf = sums.autocorrelation(&(0..sums.blocks).collect::<Vec<_>>());
     let steps = e_folding(&acf);
@@ -119,6 +125,7 @@ pub fn e_folding(acf: &[f64]) -> Option<f64> {
 }
 
 /// Per block b and lag k: the sum over t in b of mean_features z(t) z(t+k), and how many t.
+/// Blocks are numbered sequence by sequence; a lag never reaches past its sequence's end.
 struct LagSums {
     blocks: usize,
     sums: Vec<Vec<f64>>,
@@ -127,21 +134,23 @@ struct LagSums {
 
 impl LagSums {
     fn of(z: &Tensor, max_lag: usize, block: usize) -> Self {
-        let t = z.size()[0] as usize;
-        let blocks = t.div_ceil(block);
+        let (n, t) = (z.size()[0] as usize, z.size()[1] as usize);
+        let per_seq = t.div_ceil(block);
+        let blocks = n * per_seq;
         let mut sums = vec![vec![0.0; max_lag + 1]; blocks];
         let mut counts = vec![vec![0.0; max_lag + 1]; blocks];
         for k in 0..=max_lag {
-            let n = (t - k) as i64;
-            let prod = (z.narrow(0, 0, n) * z.narrow(0, k as i64, n)).mean_dim(
-                [1i64].as_slice(),
+            let len = (t - k) as i64;
+            let prod = (z.narrow(1, 0, len) * z.narrow(1, k as i64, len)).mean_dim(
+                [2i64].as_slice(),
                 false,
                 Kind::Double,
             );
-            let prod = Vec::<f64>::try_from(prod).unwrap_or_default();
+            let prod = Vec::<f64>::try_from(prod.flatten(0, -1)).unwrap_or_default();
             for (i, p) in prod.iter().enumerate() {
-                sums[i / block][k] += p;
-                counts[i / block][k] += 1.0;
+                let b = (i / len as usize) * per_seq + (i % len as usize) / block;
+                sums[b][k] += p;
+                counts[b][k] += 1.0;
             }
         }
         Self {
@@ -209,6 +218,18 @@ mod tests {
         let slow = timescale(&with_dead, &TimescaleOptions::default());
         assert!(slow.steps.unwrap() > 2.0 * fast.steps.unwrap());
         assert_eq!((slow.features_used, slow.features), (8, 12));
+    }
+
+    #[test]
+    fn sequences_each_one_block_recover_the_time_constant() {
+        // Held-out data: 40 short sequences of tau 4, lags up to (60 - 2) / 2 within each.
+        let seqs = ar1(2400, 16, 4.0, 5).view([40, 60, 16]);
+        let got = timescale(&seqs, &TimescaleOptions::default());
+        let steps = got.steps.expect("a crossing");
+        assert!((steps / 4.0 - 1.0).abs() < 0.15, "{steps}");
+        let [lo, hi] = got.interval.expect("an interval: one block per sequence");
+        assert!(lo <= steps && steps <= hi, "{lo} {steps} {hi}");
+        assert_eq!(got.autocorrelation.len(), 30);
     }
 
     #[test]
