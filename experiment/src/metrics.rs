@@ -169,12 +169,7 @@ impl Metrics {
         let seconds = |t: &mtanet_models::timescale::Timescale| t.steps.map(|s| s * a.step_s);
         let layer = |l: usize| a.layers.get(l);
         let r = |l| layer(l).and_then(|x| seconds(&x.r));
-        let units = |l| {
-            let x = layer(l)?;
-            let v: Vec<f64> = x.units.iter().filter_map(seconds).collect();
-            (!v.is_empty() && v.len() == x.units.len())
-                .then(|| v.iter().sum::<f64>() / v.len() as f64)
-        };
+        let units = |l| layer(l)?.units_steps().map(|s| s * a.step_s);
         let r2 = |source: &str, target: &str| {
             a.context
                 .iter()

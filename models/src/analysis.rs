@@ -28,11 +28,10 @@ pub struct LayerTimescales {
 }
 
 impl LayerTimescales {
-    /// The units' median e-folding time (steps), over the units that have one.
+    /// The units' mean e-folding time (steps); `None` if any unit has none.
     pub fn units_steps(&self) -> Option<f64> {
-        let mut s: Vec<f64> = self.units.iter().filter_map(|u| u.steps).collect();
-        s.sort_by(f64::total_cmp);
-        mtanet_summaries::quantile(&s, 0.5)
+        let s: Vec<f64> = self.units.iter().map(|u| u.steps).collect::<Option<_>>()?;
+        (!s.is_empty()).then(|| s.iter().sum::<f64>() / s.len() as f64)
     }
 }
 
@@ -43,7 +42,7 @@ pub enum AnalysisError {
     #[error(transparent)]
     Model(#[from] ModelError),
     /// Too few steps after the transient to measure anything.
-    #[error("need more than {skip} + 2 steps per sequence, have {steps}")]
+    #[error("need more than {skip} + 5 steps per sequence, have {steps}")]
     TooShort { skip: i64, steps: i64 },
 }
 
@@ -134,7 +133,7 @@ pub struct AnalysisReport {
     pub eval: EvalMetrics,
     /// Per layer, bottom first: e-folding times in model steps (`timescale.rs`).
     pub timescales: Vec<LayerTimescales>,
-    /// The paper's claim, top layer vs bottom layer, judged on the units' median e-folding time
+    /// The paper's claim, top layer vs bottom layer, judged on the units' mean e-folding time
     /// (the state tau integrates); `None` with one layer or when it was not measured.
     pub top_slower_than_bottom: Option<bool>,
     /// The same judged on R_l (which also follows the action's switches through the unit

@@ -3,10 +3,10 @@
 //! The signal is a `[T, D]` series (T model steps of D features: a layer's channels x positions),
 //! or `[N, T, D]`: N sequences of it (held-out data), whose lags never cross from one sequence
 //! into the next. Each feature is standardised over all steps, the autocorrelation at lag k is
-//! averaged over features and time, and the e-folding time is the lag at which it first falls below 1/e
-//! (linear between the two lags around the crossing). An AR(1) process x(t) = phi x(t-1) + noise
-//! has autocorrelation phi^k, so its e-folding time is -1/ln(phi) steps: the time constant a
-//! leaky unit of tau steps would have if it only integrated noise.
+//! averaged over features and time, and the e-folding time is the lag at which it first falls
+//! below 1/e (linear between the two lags around the crossing). An AR(1) process
+//! x(t) = phi x(t-1) + noise has autocorrelation phi^k, so its e-folding time is -1/ln(phi)
+//! steps: the time constant a leaky unit of tau steps would have if it only integrated noise.
 //!
 //! The interval is a block bootstrap: each sequence is cut into blocks much longer than the
 //! timescale, blocks are resampled with replacement, and the autocorrelation is recomputed from
