@@ -1,6 +1,7 @@
 //! The agent: who drives, step by step. The reactive rule (with exploration) drives until the
 //! world model is trusted; then active inference plans through it; if the car loses the line
-//! for too long the reactive rule takes over as a fallback until the line is back.
+//! for too long the fallback drives back the way it came and the reactive rule drives until the
+//! line is back.
 //!
 //! Timing. The model steps every `frame_skip` control steps (a *segment*); its action is the
 //! mean command applied over the segment, which is exactly the held command when the planner
@@ -17,6 +18,7 @@ use crate::drive::{Drive, Wheels, mean_wheels};
 use crate::planner::{Outcome, PlanStats};
 use crate::preference::{FrameShape, PreferenceLearner};
 use crate::reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
+use crate::recovery::Recovery;
 use crate::worker::PlanService;
 
 mod plans;
@@ -34,6 +36,7 @@ pub struct Agent {
     cfg: AgentConfig,
     control_period_s: f32,
     reactive: Reactive,
+    recovery: Recovery,
     explorer: Explorer,
     preference: PreferenceLearner,
     cost: Option<Cost>,
@@ -83,6 +86,7 @@ impl Agent {
             cfg: cfg.clone(),
             control_period_s,
             reactive: Reactive::new(reactive),
+            recovery: Recovery::new(cfg.retrace_s, reactive.cruise, control_period_s),
             explorer: Explorer::new(exploration, control_period_s),
             preference: PreferenceLearner::new(
                 shape,
@@ -171,6 +175,7 @@ impl Agent {
         self.applied.push(t.applied);
         self.preference.observe(t.frame, t.line);
         self.reactive.observe(t.line);
+        self.recovery.observe(t.step, t.line, t.measured);
         // Lost: no line sensor on *and* no line in the near half of the camera's view. The bar
         // leaves the line when the car cuts a tight bend while the camera still follows it.
         let lost = t.line == [false; 3] && !self.camera_sees_line(t.frame);
@@ -236,6 +241,7 @@ impl Agent {
                     if let Some(p) = self.fresh_plan(t, plans) {
                         tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
                         self.mode = Mode::ActiveInference;
+                        self.recovery.reset();
                         self.stats.switches_to_active_inference += 1;
                         let s = &mut self.stats;
                         s.first_takeover_step.get_or_insert(
@@ -264,6 +270,7 @@ impl Agent {
                             "line found again; the world model is not trusted: the reactive rule drives"
                         );
                         self.mode = Mode::Reactive;
+                        self.recovery.reset();
                     }
                     if may_resume && self.cost.is_some() && trusted {
                         if !plans.idle() {
@@ -289,7 +296,8 @@ impl Agent {
             Mode::Fallback if self.arming => self.decided(self.committed, Driver::Fallback, None),
             Mode::Reactive if self.arming => self.decided(self.committed, Driver::Reactive, None),
             Mode::Fallback => {
-                let w = self.reactive.act(t.line);
+                let back = self.recovery.retrace(t.line);
+                let w = back.unwrap_or_else(|| self.reactive.act(t.line));
                 self.decided(w, Driver::Fallback, None)
             }
             // Weights fit for control (a passing probe: a checkpoint, or a model learnt online,
@@ -407,6 +415,7 @@ impl Agent {
         self.deferred = None;
         model.reset();
         self.reactive.reset();
+        self.recovery.reset();
         self.applied.clear();
         self.ticks_in_segment = 0;
         self.spare.clear();

@@ -9,7 +9,8 @@
 //! - [`planner`]: CEM over piecewise-constant commands through an [`planner::Imagination`];
 //! - [`worker`]: where plans are computed (inline or on a thread);
 //! - [`agent`]: who drives each step (reactive rule with exploration, active inference, fallback);
-//! - [`reactive`]: the line-sensor rule and the exploration segments.
+//! - [`reactive`]: the line-sensor rule and the exploration segments;
+//! - [`recovery`]: how the fallback finds a lost line (driving back the way it came).
 
 pub mod agent;
 pub mod cost;
@@ -17,6 +18,7 @@ pub mod drive;
 pub mod planner;
 pub mod preference;
 pub mod reactive;
+pub mod recovery;
 pub mod worker;
 
 pub use agent::{
@@ -27,4 +29,5 @@ pub use drive::{Drive, Wheels};
 pub use planner::{Imagination, Outcome, PlanStats, Planner, PlannerConfig, PlanningSummary};
 pub use preference::{FrameShape, PreferenceLearner, PreferredLine};
 pub use reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
+pub use recovery::Recovery;
 pub use worker::{Inline, PlanJob, PlanService, Threaded};

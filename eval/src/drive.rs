@@ -96,10 +96,12 @@ where
         let s = &f.sensors;
         model.sees(car.world_mut());
         let tick = Tick {
+            step: f.step,
             episode: f.episode,
             frame: &s.image,
             line: s.line,
             applied: f.applied,
+            measured: s.wheel_velocity,
             lockstep: true,
         };
         let d = agent.step(&tick, model, plans)?;
@@ -182,10 +184,12 @@ pub fn record_reactive(world: &mut World, steps: usize, seed: u64) -> anyhow::Re
     while rec.frames.len() < steps {
         let f = car.sense();
         let t = Tick {
+            step: f.step,
             episode: f.episode,
             frame: &f.sensors.image,
             line: f.sensors.line,
             applied: f.applied,
+            measured: f.sensors.wheel_velocity,
             lockstep: true,
         };
         let d = agent.step(&t, &mut Blind, &mut NoPlans)?;

@@ -147,7 +147,7 @@ pub fn probe(
     let period = world.config().control_period_s;
     let mut referee = mtanet_scenes::Referee::new(3.0, period, 0.1, 0.15);
     let max_ticks = (cfg.warmup + cfg.spacing * cfg.states * 3) * skip + 10_000;
-    for _ in 0..max_ticks {
+    for step in 0..max_ticks as u64 {
         if rhos.len() >= cfg.states {
             break;
         }
@@ -156,10 +156,12 @@ pub fn probe(
         let before = live.steps;
         let d = agent.step(
             &Tick {
+                step,
                 episode,
                 frame: &s.image,
                 line: s.line,
                 applied,
+                measured: s.wheel_velocity,
                 lockstep: true,
             },
             &mut live,

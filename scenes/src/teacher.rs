@@ -89,6 +89,18 @@ impl Teacher {
         self.act_on_line(s.line)
     }
 
+    /// Remembers where the line was last seen without acting: called every step while another
+    /// driver steers, a stand-in command (a missed deadline) then searches on the right side (a
+    /// stale side turns the car away from the line and, in the end, around).
+    pub fn observe(&mut self, line: [bool; 3]) {
+        self.last_seen = match line {
+            [true, _, false] => Side::Left,
+            [false, _, true] => Side::Right,
+            [false, true, false] => Side::Middle,
+            _ => return,
+        };
+    }
+
     /// [`Teacher::act`] from the three line sensors alone (what a remote process sees in an
     /// observation message).
     pub fn act_on_line(&mut self, line: [bool; 3]) -> [f32; 2] {
@@ -106,31 +118,17 @@ impl Teacher {
         // Slowing the wheel on the side where the line is turns the car towards it.
         let left_turn = |amount: f32| [c - amount, c];
         let right_turn = |amount: f32| [c, c - amount];
+        self.observe(line);
         match line {
             [true, _, true] => {
                 self.backoff_left = self.cfg.backoff_steps.saturating_sub(1);
                 [-0.5 * c, -0.5 * c]
             }
-            [true, true, false] => {
-                self.last_seen = Side::Left;
-                left_turn(self.cfg.gentle * t)
-            }
-            [true, false, false] => {
-                self.last_seen = Side::Left;
-                left_turn(t)
-            }
-            [false, true, true] => {
-                self.last_seen = Side::Right;
-                right_turn(self.cfg.gentle * t)
-            }
-            [false, false, true] => {
-                self.last_seen = Side::Right;
-                right_turn(t)
-            }
-            [false, true, false] => {
-                self.last_seen = Side::Middle;
-                [c, c]
-            }
+            [true, true, false] => left_turn(self.cfg.gentle * t),
+            [true, false, false] => left_turn(t),
+            [false, true, true] => right_turn(self.cfg.gentle * t),
+            [false, false, true] => right_turn(t),
+            [false, true, false] => [c, c],
             // Lost the line: search towards where it was last seen, or keep going.
             [false, false, false] => match self.last_seen {
                 Side::Left => left_turn(self.cfg.search * t),

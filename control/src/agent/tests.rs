@@ -132,10 +132,13 @@ fn agent(cfg: &AgentConfig) -> Agent {
 
 fn tick<'a>(frame: &'a [f32], line: [bool; 3], applied: Wheels) -> Tick<'a> {
     Tick {
+        step: 0,
         episode: 0,
         frame,
         line,
         applied,
+        // An ideal car: the wheels turn at the command.
+        measured: applied,
         lockstep: true,
     }
 }

@@ -64,6 +64,9 @@ pub struct AgentConfig {
     /// ...and take over again once the line has been found again for this long (and the middle
     /// sensor is on it).
     pub resume_after_s: f32,
+    /// The fallback first drives back to where the line sensors last saw the line if that was
+    /// at most this long ago, seconds (0: only the reactive rule's search; `recovery.rs`).
+    pub retrace_s: f32,
     /// Centred frames needed before the preference is used, and the newest kept.
     pub preference_frames: usize,
     pub preference_capacity: usize,
@@ -92,6 +95,7 @@ impl Default for AgentConfig {
             distrust_after_steps: 50,
             fallback_after_s: 0.5,
             resume_after_s: 0.5,
+            retrace_s: 3.0,
             preference_frames: 300,
             preference_capacity: 2000,
             preference_steady_s: 0.0,
@@ -119,11 +123,15 @@ impl AgentConfig {
 /// One control step's input.
 #[derive(Debug, Clone, Copy)]
 pub struct Tick<'a> {
+    /// The frame's control step (the simulator's count).
+    pub step: u64,
     pub episode: u32,
     pub frame: &'a [f32],
     pub line: [bool; 3],
     /// The command applied during the step that led to this frame.
     pub applied: Wheels,
+    /// The wheel velocities measured at this frame, rad/s (they lag the command).
+    pub measured: Wheels,
     /// The simulator waits for every command (no deadline to keep).
     pub lockstep: bool,
 }

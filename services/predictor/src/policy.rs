@@ -47,10 +47,12 @@ impl Policy {
     /// Decides the command for this observation.
     pub fn act(&mut self, obs: &Observation) -> anyhow::Result<Decision> {
         let tick = Tick {
+            step: obs.step,
             episode: u32::from(obs.episode),
             frame: &obs.image,
             line: obs.line_sensors.map(|v| v != 0),
             applied: obs.command,
+            measured: obs.wheel_velocity,
             lockstep: obs.lockstep != 0,
         };
         match (self.model.as_mut(), self.planner.as_mut()) {

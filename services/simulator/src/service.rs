@@ -83,6 +83,8 @@ pub fn run(
         let t0_ns = stamp::monotonic_ns();
         let frame = car.sense();
         let obs_stamp = publish_observation(ports, &frame, lockstep)?;
+        // The stand-in for a missed command must know where the line was last seen.
+        teacher.observe(frame.sensors.line);
         let (cmd, source) = answers.take(
             node,
             ports,
