@@ -8,7 +8,7 @@
 //! 8 by the search alone; the 6 failures were held hard turns that spun the car round more than
 //! once before the hand-over, whose way back the referee ends as lost or backwards.)
 
-use mtanet_control::{Drive, Reactive, ReactiveConfig, Recovery};
+use mtanet_control::{Drive, Reactive, ReactiveConfig, Recovery, recovery};
 use mtanet_scenes::{Referee, SceneConfig, Teacher, TeacherConfig, Verdict, World};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -106,6 +106,13 @@ fn trial(track: &str, seed: u64, retrace: bool) -> Option<Outcome> {
     } else {
         Outcome::Astray
     })
+}
+
+#[test]
+fn the_way_back_knows_the_cars_wheels() {
+    use mtanet_scenes::car::{AXLE_HALF_M, WHEEL_RADIUS_M};
+    let k = (WHEEL_RADIUS_M / (2.0 * AXLE_HALF_M)) as f32;
+    assert!((recovery::HEADING_PER_WHEEL_RAD - k).abs() < 1e-6, "{k}");
 }
 
 #[test]
