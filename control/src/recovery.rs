@@ -4,10 +4,13 @@
 //! the wheel angles, so it comes back exactly; the position within a few centimetres), and the
 //! reactive rule follows the line forward from there. The wheel angles come from the measured
 //! wheel velocities, so the servo's lag does not matter (replaying the commands backwards left
-//! the heading off by a third of the turn the car had made). Only when the car was off the line
-//! longer than the memory does the rule's own search drive: turning toward the side the line was
-//! last seen on, which circles, finds nothing from more than about 10 cm away, and crosses the
-//! line at any heading (half the time it then follows the line backwards).
+//! the heading off by a third of the turn the car had made). Only when the way back is unknown
+//! (off the line longer than the memory, or more than a few frames missed meanwhile) does the
+//! rule's own search drive: turning toward the side the line was last seen on, which circles,
+//! finds nothing from more than about 10 cm away, and crosses the line at any heading (half the
+//! time it then follows the line backwards). At a bend's exit the search would find the line
+//! sooner than the way back, which backs out of the bend first; but a search that meets the
+//! line at a steep angle follows it either way, so it never goes first (docs/measurements.md).
 
 use crate::drive::Wheels;
 
