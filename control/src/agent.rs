@@ -175,10 +175,10 @@ impl Agent {
         self.applied.push(t.applied);
         self.preference.observe(t.frame, t.line);
         self.reactive.observe(t.line);
-        self.recovery.observe(t.step, t.line, t.measured);
         // Lost: no line sensor on *and* no line in the near half of the camera's view. The bar
         // leaves the line when the car cuts a tight bend while the camera still follows it.
         let lost = t.line == [false; 3] && !self.camera_sees_line(t.frame);
+        self.recovery.observe(t.step, !lost, t.measured);
         self.lost_ticks = if lost { self.lost_ticks + 1 } else { 0 };
         self.found_ticks = if lost { 0 } else { self.found_ticks + 1 };
 

@@ -1,16 +1,22 @@
 //! How the fallback finds a line it lost: it drives backwards until both wheels have turned back
-//! by what they turned since the line sensors last saw the line, which brings the car back to
-//! about where it left the line, facing the way it was going (the heading is the difference of
-//! the wheel angles, so it comes back exactly; the position within a few centimetres), and the
-//! reactive rule follows the line forward from there. The wheel angles come from the measured
-//! wheel velocities, so the servo's lag does not matter (replaying the commands backwards left
-//! the heading off by a third of the turn the car had made). Only when the way back is unknown
-//! (off the line longer than the memory, or more than a few frames missed meanwhile) does the
-//! rule's own search drive: turning toward the side the line was last seen on, which circles,
-//! finds nothing from more than about 10 cm away, and crosses the line at any heading (half the
-//! time it then follows the line backwards). At a bend's exit the search would find the line
-//! sooner than the way back, which backs out of the bend first; but a search that meets the
-//! line at a steep angle follows it either way, so it never goes first (docs/measurements.md).
+//! by what they turned since the line was last in sight (a line sensor on, or the line in the
+//! near half of the camera's view: the agent's test for a lost line), which brings the car back
+//! to about where it left the line, facing the way it was going (the heading is the difference
+//! of the wheel angles, so it comes back exactly; the position within a few centimetres), and
+//! the reactive rule follows the line forward from there. The wheel angles come from the
+//! measured wheel velocities, so the servo's lag does not matter (replaying the commands
+//! backwards left the heading off by a third of the turn the car had made). The camera counts:
+//! a car drifting slowly off a straight, its camera following the line beside it for seconds
+//! after the sensors lost it, would otherwise back up all that way (and be put back for driving
+//! the wrong way round); so it backs up the half second the fallback waited, and the rule's
+//! search turns to the side the sensors last saw the line on, meeting it at a shallow angle.
+//! Only when the way back is unknown (out of sight longer than the memory, or more than a few
+//! frames missed meanwhile) does the rule's own search drive first: turning toward the side the
+//! line was last seen on, which circles, finds nothing from more than about 10 cm away, and
+//! crosses the line at any heading (half the time it then follows the line backwards). At a
+//! bend's exit the search would find the line sooner than the way back, which backs out of the
+//! bend first; but a search that meets the line at a steep angle follows it either way, so it
+//! never goes first (docs/measurements.md).
 
 use crate::drive::Wheels;
 
@@ -37,7 +43,7 @@ pub struct Recovery {
     max_ticks: u32,
     /// Fastest wheel speed on the way back, rad/s.
     speed: f32,
-    /// Wheel angles turned since the sensors last saw the line, rad.
+    /// Wheel angles turned since the line was last in sight, rad.
     turned: [f32; 2],
     /// The previous frame's step and measured wheel velocities.
     last: Option<(u64, Wheels)>,
@@ -71,10 +77,10 @@ impl Recovery {
         }
     }
 
-    /// Every control step, whoever drives: the frame's step (the simulator's count), its line
-    /// sensors and the wheel velocities measured at it (rad/s).
-    pub fn observe(&mut self, step: u64, line: [bool; 3], measured: Wheels) {
-        let on_line = line.contains(&true);
+    /// Every control step, whoever drives: the frame's step (the simulator's count), whether the
+    /// line is in sight (a line sensor, or the camera) and the wheel velocities measured at it
+    /// (rad/s).
+    pub fn observe(&mut self, step: u64, in_sight: bool, measured: Wheels) {
         match self.last.replace((step, measured)) {
             Some((s0, before)) if step >= s0 && step - s0 <= MAX_GAP_STEPS => {
                 let dt = (step - s0) as f32 * self.period_s;
@@ -82,11 +88,11 @@ impl Recovery {
                     *t += 0.5 * (a + b) * dt;
                 }
             }
-            Some(_) if !on_line => self.state = State::Searching,
+            Some(_) if !in_sight => self.state = State::Searching,
             _ => {}
         }
         match self.state {
-            State::Remembering | State::Searching if on_line => self.restart(),
+            State::Remembering | State::Searching if in_sight => self.restart(),
             State::Remembering | State::Retracing => self.ticks += 1,
             State::Searching => {}
         }
@@ -152,7 +158,7 @@ mod tests {
     /// An ideal drive, one frame per step: the wheels turn at the command at once.
     fn drive(r: &mut Recovery, line: [bool; 3], w: Wheels) {
         let step = r.last.map_or(0, |(s, _)| s + 1);
-        r.observe(step, line, w);
+        r.observe(step, line.contains(&true), w);
     }
 
     #[test]
@@ -226,6 +232,21 @@ mod tests {
     }
 
     #[test]
+    fn a_line_still_in_the_cameras_view_counts_as_in_sight() {
+        let mut r = Recovery::new(3.0, 8.0, 0.02);
+        // 2 s beside the line, the sensors off it and the camera still seeing it, then 0.5 s
+        // with the line out of sight: only the last 0.5 s is undone.
+        for step in 0..100 {
+            r.observe(step, true, [8.0, 8.0]);
+        }
+        for step in 100..125 {
+            r.observe(step, false, [8.0, 8.0]);
+        }
+        assert!((r.turned[0] - 8.0 * 25.0 * 0.02).abs() < 1e-4, "{r:?}");
+        assert!(r.retrace(OFF).is_some());
+    }
+
+    #[test]
     fn no_way_back_after_longer_than_the_memory() {
         let mut r = Recovery::new(0.1, 8.0, 0.02); // 5 steps
         drive(&mut r, ON, [8.0, 8.0]);
@@ -241,19 +262,19 @@ mod tests {
     #[test]
     fn a_few_missed_frames_are_bridged_and_a_long_gap_gives_the_way_back_up() {
         let mut r = Recovery::new(3.0, 8.0, 0.02);
-        r.observe(10, ON, [8.0, 8.0]);
-        r.observe(11, OFF, [8.0, 8.0]);
-        r.observe(14, OFF, [8.0, 8.0]); // two frames missed
+        r.observe(10, true, [8.0, 8.0]);
+        r.observe(11, false, [8.0, 8.0]);
+        r.observe(14, false, [8.0, 8.0]); // two frames missed
         assert!((r.turned[0] - 8.0 * 4.0 * 0.02).abs() < 1e-5, "{r:?}");
         assert!(r.retrace(OFF).is_some());
         // A predictor stopped for a second: where it went meanwhile is unknown.
-        r.observe(64, OFF, [-8.0, -8.0]);
+        r.observe(64, false, [-8.0, -8.0]);
         assert_eq!(r.retrace(OFF), None);
         // The line found again, a loss counts afresh.
-        r.observe(65, ON, [8.0, 8.0]);
-        r.observe(66, OFF, [8.0, 8.0]);
+        r.observe(65, true, [8.0, 8.0]);
+        r.observe(66, false, [8.0, 8.0]);
         assert_eq!(r.retrace(OFF), None, "5 mm off: nothing to undo yet");
-        r.observe(67, OFF, [8.0, 8.0]);
+        r.observe(67, false, [8.0, 8.0]);
         assert!(r.retrace(OFF).is_some());
     }
 }

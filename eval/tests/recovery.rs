@@ -35,7 +35,9 @@ impl Fallback {
         let s = world.sense();
         self.reactive.observe(s.line);
         let step = (world.time_s() / PERIOD_S).round() as u64;
-        self.recovery.observe(step, s.line, s.wheel_velocity);
+        // The sensors alone: the camera's test needs the agent's learnt preference.
+        self.recovery
+            .observe(step, s.line.contains(&true), s.wheel_velocity);
         s
     }
 }

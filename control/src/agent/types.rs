@@ -64,8 +64,8 @@ pub struct AgentConfig {
     /// ...and take over again once the line has been found again for this long (and the middle
     /// sensor is on it).
     pub resume_after_s: f32,
-    /// The fallback first drives back to where the line sensors last saw the line if that was
-    /// at most this long ago, seconds (0: only the reactive rule's search; `recovery.rs`).
+    /// The fallback first drives back to where the line was last in sight (sensors or camera)
+    /// if that was at most this long ago, seconds (0: only the reactive rule's search; `recovery.rs`).
     pub retrace_s: f32,
     /// Centred frames needed before the preference is used, and the newest kept.
     pub preference_frames: usize,
