@@ -3,8 +3,8 @@
 //!
 //! A plan is `horizon` segments, each a [`Drive`] held for one model step (`frame_skip` control
 //! steps). Each call first scores the warm start (the previous plan shifted by one segment) with
-//! a few fixed candidates (straight on, constant turns), so it has a plan in hand; then CEM
-//! iterations sample candidates around the warm start, have the imagination roll each batch
+//! fixed candidates (straight on, three constant turns each way), so it has a plan in hand; then
+//! CEM iterations sample candidates around the warm start, have the imagination roll each batch
 //! out, score the imagined frames by expected free energy ([`crate::cost`]) and refit a Gaussian
 //! to the elites; the best plan seen wins.
 //!
@@ -351,12 +351,14 @@ impl Planner {
         }
     }
 
-    /// The warm start, and straight on and constant turns both ways at the speed in force.
+    /// The warm start, and straight on and constant turns both ways at the speed in force. The
+    /// gentlest turn (a quarter of the largest) is what corrects a slow drift off a straight
+    /// when a slow machine's plan has time for no CEM iteration (docs/measurements.md).
     fn fixed_candidates(&self, warm: &[Drive], before: Drive) -> Vec<Vec<Drive>> {
         let h = warm.len();
         let t = self.cfg.max_turn;
         let mut out = vec![warm.to_vec()];
-        for turn in [0.0, -0.5 * t, 0.5 * t, -t, t] {
+        for turn in [0.0, -0.25 * t, 0.25 * t, -0.5 * t, 0.5 * t, -t, t] {
             out.push(vec![self.clamp(Drive::new(before.speed, turn)); h]);
         }
         out

@@ -10,6 +10,8 @@ use crate::preference::tests::{learnt, line_frame};
 struct Toy {
     offset: f32,
     per_candidate_step: Duration,
+    /// Batches rolled out with a deadline before it counts as passed (`None`: by the clock).
+    batches_in_time: Option<usize>,
 }
 
 impl Toy {
@@ -17,6 +19,7 @@ impl Toy {
         let mut toy = Self {
             offset: 0.0,
             per_candidate_step,
+            batches_in_time: None,
         };
         toy.start(start, [8.0, 8.0]).unwrap();
         toy
@@ -55,6 +58,11 @@ impl Imagination for Toy {
         plans: &[Vec<Drive>],
         deadline: Instant,
     ) -> anyhow::Result<Option<Vec<Vec<f32>>>> {
+        if let Some(n) = self.batches_in_time.as_mut() {
+            let in_time = *n > 0;
+            *n = n.saturating_sub(1);
+            return Ok(in_time.then(|| self.rollout(plans, None)).flatten());
+        }
         Ok(self.rollout(plans, Some(deadline)))
     }
 }
@@ -66,7 +74,7 @@ fn cost() -> Cost {
 #[test]
 fn steers_the_line_back_to_the_centre_and_keeps_moving() {
     let mut planner = Planner::new(&PlannerConfig::default()).unwrap();
-    assert_eq!(planner.batch_sizes(), vec![6, 8, 16, 24, 32]);
+    assert_eq!(planner.batch_sizes(), vec![8, 16, 24, 32]);
     // Line 3 pixels left of the centre: turning left (positive turn) brings it back.
     let mut toy = Toy::new(-3.0, Duration::ZERO);
     let out = planner
@@ -77,11 +85,11 @@ fn steers_the_line_back_to_the_centre_and_keeps_moving() {
         out.plan[0].speed > 5.0,
         "the progress prior keeps it moving: {out:?}"
     );
-    // Without a deadline the configured work runs to the end: the warm start's batch of 6,
+    // Without a deadline the configured work runs to the end: the warm start's batch of 8,
     // then 3 iterations of 32.
     assert_eq!(
         (out.evaluations, out.iterations, out.candidates, out.cut),
-        (6 + 3 * 32, 3, 32, false)
+        (8 + 3 * 32, 3, 32, false)
     );
     // Same seed, same inputs: the same plan.
     let mut again = Planner::new(&PlannerConfig::default()).unwrap();
@@ -91,13 +99,32 @@ fn steers_the_line_back_to_the_centre_and_keeps_moving() {
     assert_eq!((&out.plan, out.terms), (&out2.plan, out2.terms));
 }
 
+/// A machine too slow for any CEM iteration plans from the fixed candidates alone: a line a
+/// little off the centre (a slow drift) is brought back by the gentlest turn, not left to grow
+/// by going straight on or overshot by a hard turn.
+#[test]
+fn without_time_for_an_iteration_a_gentle_turn_corrects_a_small_offset() {
+    let cfg = PlannerConfig::default();
+    let mut planner = Planner::new(&cfg).unwrap();
+    // 1.1 pixels left (within a pixel the cost's floor keeps it straight; from 1.3 a half turn
+    // wins): a quarter turn (2 rad/s) brings it back over the 4 segments.
+    let mut toy = Toy::new(-1.1, Duration::ZERO);
+    toy.batches_in_time = Some(1);
+    let deadline = Instant::now() + Duration::from_secs(3600);
+    let out = planner
+        .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), Some(deadline))
+        .unwrap();
+    assert_eq!((out.iterations, out.cut), (0, true), "{out:?}");
+    assert_eq!(out.plan[0].turn, 0.25 * cfg.max_turn, "{out:?}");
+}
+
 /// A model whose full plan takes ~4x its deadline: the plan comes by the deadline (within one
 /// imagined step of a batch), improved as far as the time allowed, and says it was cut.
 #[test]
 fn a_slow_imagination_plans_less_never_late() {
     let per = Duration::from_micros(200);
     let cfg = PlannerConfig::default();
-    // The full work: (6 + 3 x 32) candidates x 4 steps x 0.2 ms = ~82 ms.
+    // The full work: (8 + 3 x 32) candidates x 4 steps x 0.2 ms = ~83 ms.
     let budget = Duration::from_millis(20);
     let mut planner = Planner::new(&cfg).unwrap();
     let mut toy = Toy::new(-3.0, per);

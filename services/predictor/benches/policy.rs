@@ -51,9 +51,10 @@ fn main() {
     }
     row("model step (batch 1)", &s);
     let mut im = Imagined::from_bytes(&bytes).unwrap();
-    // The warm start's batch (6) and the sizes a deadline chooses from (8 apart, up to 32); the
-    // first call of each batch size apart: libtorch builds its convolutions' work per shape,
-    // which is why the planner's thread rolls each size out once before its first plan.
+    // The warm start's batch (8, also the smallest a deadline chooses), the sizes a deadline
+    // chooses from (8 apart, up to 32) and 6 for comparison; the first call of each batch size
+    // apart: libtorch builds its convolutions' work per shape, which is why the planner's
+    // thread rolls each size out once before its first plan.
     let mut first = LatencyStats::new();
     for (k, h) in [(6, 4), (8, 4), (16, 4), (24, 4), (32, 4), (64, 4), (16, 15)] {
         let plans = vec![vec![Drive::new(8.0, 1.0); h]; k];
