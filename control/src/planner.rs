@@ -50,6 +50,11 @@ pub trait Imagination {
         let _ = deadline;
         self.imagine(plans).map(Some)
     }
+    /// The clock deadlines are kept by and rollouts are timed on. Default: the wall clock; a
+    /// test's imagination can run on a clock of its own and so check timing exactly.
+    fn now(&self) -> Instant {
+        Instant::now()
+    }
     /// Rolls a batch of each of `batch_sizes` out once, before plans with deadlines (a model's
     /// first batch of a new size can cost several times a later one). Default: nothing to do.
     fn warm_up(&mut self, batch_sizes: &[usize], horizon: usize) -> anyhow::Result<()> {
@@ -226,7 +231,7 @@ impl Planner {
             let k = match deadline {
                 None => samples,
                 Some(d) => {
-                    let left = d.saturating_duration_since(Instant::now());
+                    let left = d.saturating_duration_since(imagination.now());
                     match self
                         .rollout_cost
                         .affordable(left, h, min, samples, SIZE_STEP)
@@ -290,7 +295,7 @@ impl Planner {
         cands: &[Vec<Drive>],
         deadline: Option<Instant>,
     ) -> anyhow::Result<Option<Scored>> {
-        let t0 = Instant::now();
+        let t0 = imagination.now();
         let frames = match deadline {
             None => imagination.imagine(cands)?,
             Some(d) => match imagination.imagine_until(cands, d)? {
@@ -298,8 +303,9 @@ impl Planner {
                 None => return Ok(None),
             },
         };
+        let took = imagination.now().saturating_duration_since(t0);
         self.rollout_cost
-            .observe(cands.len() * self.cfg.horizon, t0.elapsed());
+            .observe(cands.len() * self.cfg.horizon, took);
         ensure!(
             frames.len() == cands.len(),
             "imagination returned {} rollouts for {} plans",

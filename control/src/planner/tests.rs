@@ -1,3 +1,4 @@
+use std::cell::Cell;
 use std::time::Duration;
 
 use super::*;
@@ -6,10 +7,13 @@ use crate::preference::tests::{learnt, line_frame};
 
 /// A toy world: the line's column moves by the turn each segment (a positive turn, to the left,
 /// moves the line right in the image), from a start offset. Each imagined step of a batch costs
-/// `per_candidate_step` per candidate, like a model's batched rollout.
+/// `per_candidate_step` per candidate, like a model's batched rollout, on the toy's own clock:
+/// timing is exact, whatever the machine running the test is doing.
 struct Toy {
     offset: f32,
     per_candidate_step: Duration,
+    clock_zero: Instant,
+    clock: Cell<Duration>,
     /// Batches rolled out with a deadline before it counts as passed (`None`: by the clock).
     batches_in_time: Option<usize>,
 }
@@ -19,6 +23,8 @@ impl Toy {
         let mut toy = Self {
             offset: 0.0,
             per_candidate_step,
+            clock_zero: Instant::now(),
+            clock: Cell::new(Duration::ZERO),
             batches_in_time: None,
         };
         toy.start(start, [8.0, 8.0]).unwrap();
@@ -30,11 +36,12 @@ impl Toy {
         let mut offsets = vec![self.offset; plans.len()];
         let mut frames = vec![Vec::new(); plans.len()];
         for s in 0..h {
-            if deadline.is_some_and(|d| Instant::now() >= d) {
+            if deadline.is_some_and(|d| self.now() >= d) {
                 return None;
             }
-            // Stands in for the model's compute of one imagined step of the whole batch.
-            std::thread::sleep(self.per_candidate_step * plans.len() as u32);
+            // The model's compute of one imagined step of the whole batch.
+            self.clock
+                .set(self.clock.get() + self.per_candidate_step * plans.len() as u32);
             for (i, p) in plans.iter().enumerate() {
                 offsets[i] += 0.1 * p[s].turn;
                 frames[i].extend(line_frame(6.0 + offsets[i], 0.0));
@@ -64,6 +71,9 @@ impl Imagination for Toy {
             return Ok(in_time.then(|| self.rollout(plans, None)).flatten());
         }
         Ok(self.rollout(plans, Some(deadline)))
+    }
+    fn now(&self) -> Instant {
+        self.clock_zero + self.clock.get()
     }
 }
 
@@ -110,7 +120,7 @@ fn without_time_for_an_iteration_a_gentle_turn_corrects_a_small_offset() {
     // wins): a quarter turn (2 rad/s) brings it back over the 4 segments.
     let mut toy = Toy::new(-1.1, Duration::ZERO);
     toy.batches_in_time = Some(1);
-    let deadline = Instant::now() + Duration::from_secs(3600);
+    let deadline = toy.now() + Duration::from_secs(3600);
     let out = planner
         .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), Some(deadline))
         .unwrap();
@@ -131,17 +141,14 @@ fn a_slow_imagination_plans_less_never_late() {
     let mut iterations = Vec::new();
     for _ in 0..5 {
         toy.start(-3.0, [8.0, 8.0]).unwrap();
-        let t0 = Instant::now();
+        let t0 = toy.now();
         let out = planner
             .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), Some(t0 + budget))
             .unwrap();
-        let took = t0.elapsed();
-        // One imagined step of the largest batch (32 x 0.2 ms) may finish after the deadline;
-        // the rest of the slack is the test machine's scheduling.
-        assert!(
-            took <= budget + per * 32 + Duration::from_millis(15),
-            "{took:?}"
-        );
+        let took = toy.now() - t0;
+        // One imagined step of the largest batch (32 x 0.2 ms) may finish after the deadline.
+        assert!(took <= budget + per * 32, "{took:?}");
+        assert!(took >= budget / 2, "it used the time it had: {took:?}");
         assert!(out.cut && out.terms.is_some(), "{out:?}");
         assert!(
             out.plan[0].turn > 0.0,
@@ -160,13 +167,9 @@ fn a_deadline_already_past_drives_the_warm_start_unscored() {
     let first = planner
         .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), None)
         .unwrap();
+    let now = toy.now();
     let out = planner
-        .plan(
-            &mut toy,
-            &cost(),
-            Drive::new(8.0, 0.0),
-            Some(Instant::now()),
-        )
+        .plan(&mut toy, &cost(), Drive::new(8.0, 0.0), Some(now))
         .unwrap();
     let mut shifted = first.plan[1..].to_vec();
     shifted.push(*first.plan.last().unwrap());
