@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use crate::matrix::{Cell, CellRecord, Phase, Row};
+use crate::matrix::{Cell, CellRecord, MadeWith, Phase, Row};
 use crate::metrics::Metrics;
 use crate::run::{Live, Run, up};
 use crate::spec::track_slug;
@@ -66,6 +66,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
         key: key.clone(),
         rows,
         wall_seconds: start.elapsed().as_secs_f64(),
+        made_with: MadeWith::here(),
     };
     mtanet_files::write_json(&cell.record_path(), &record).map_err(|e| no_log(e.into()))?;
     Ok(record)

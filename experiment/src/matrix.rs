@@ -61,6 +61,28 @@ pub struct CellRecord {
     pub key: CellKey,
     pub rows: Vec<Row>,
     pub wall_seconds: f64,
+    /// Empty in cells recorded before it was (read as "not recorded").
+    #[serde(default)]
+    pub made_with: MadeWith,
+}
+
+/// The code and the machine a cell ran on: an experiment resumed across sessions can mix
+/// commits, and wall times depend on the CPU.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MadeWith {
+    /// `git describe` of the build (`-dirty`: uncommitted changes), "unknown" outside git.
+    pub commit: String,
+    /// E.g. "AMD EPYC (no AVX-512), 2 CPUs".
+    pub cpu: String,
+}
+
+impl MadeWith {
+    pub fn here() -> Self {
+        Self {
+            commit: env!("MTANET_COMMIT").to_string(),
+            cpu: mtanet_summaries::soak::Machine::here(0).cpu(),
+        }
+    }
 }
 
 /// `failed.json`: a cell that failed, to be run again.
@@ -237,6 +259,7 @@ mod tests {
             key: c.key.clone(),
             rows: vec![],
             wall_seconds: 1.0,
+            made_with: MadeWith::here(),
         };
         mtanet_files::write_json(&c.record_path(), &rec).unwrap();
         assert!(matches!(c.state().unwrap(), State::Done(_)));

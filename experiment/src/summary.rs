@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::matrix::{CellRecord, Failure, Phase, Row};
+use crate::matrix::{CellRecord, Failure, MadeWith, Phase, Row};
 use crate::metrics::NAMES;
 use crate::spec::Spec;
 use crate::stats::{Spread, bootstrap_median_difference};
@@ -121,6 +121,7 @@ pub fn summary_md(path: &Path, x: &Inputs) -> anyhow::Result<()> {
         x.failures.len(),
         x.cells,
     );
+    let _ = writeln!(md, "- made with: {}", made_with(x.records));
     if !x.failures.is_empty() {
         md.push_str("\n## Failed cells\n\n");
         for (label, f) in x.failures {
@@ -228,6 +229,40 @@ fn names(variants: &[crate::spec::Variant]) -> Vec<String> {
     variants.iter().map(|v| format!("`{}`", v.name)).collect()
 }
 
+/// The commits and CPUs the finished cells ran on, with how many cells each: more than one
+/// commit says the experiment was resumed with other code.
+fn made_with(records: &[CellRecord]) -> String {
+    let mut seen: Vec<(&MadeWith, usize)> = Vec::new();
+    for r in records {
+        match seen.iter_mut().find(|(m, _)| **m == r.made_with) {
+            Some((_, n)) => *n += 1,
+            None => seen.push((&r.made_with, 1)),
+        }
+    }
+    if seen.is_empty() {
+        return "no cell finished".into();
+    }
+    seen.iter()
+        .map(|(m, n)| {
+            let commit = if m.commit.is_empty() {
+                "commit not recorded".into()
+            } else {
+                format!("commit `{}`", m.commit)
+            };
+            let cpu = if m.cpu.is_empty() {
+                "a CPU not recorded"
+            } else {
+                &m.cpu
+            };
+            format!(
+                "{commit} on {cpu} ({n} cell{})",
+                if *n == 1 { "" } else { "s" }
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -265,6 +300,7 @@ mod tests {
             },
             rows,
             wall_seconds: 0.0,
+            made_with: Default::default(),
         }
     }
 
@@ -291,6 +327,38 @@ mod tests {
         assert!(
             text.contains("\na,1,eval,g0,,,"),
             "a missing value is an empty field: {text}"
+        );
+    }
+
+    #[test]
+    fn made_with_counts_cells_per_commit_and_cpu_and_says_what_was_not_recorded() {
+        let with = |commit: &str| MadeWith {
+            commit: commit.into(),
+            cpu: "X (no AVX-512), 2 CPUs".into(),
+        };
+        let mut recs = vec![
+            record("a", 0, 1.0, &[]),
+            record("a", 1, 1.0, &[]),
+            record("b", 0, 1.0, &[]),
+        ];
+        recs[0].made_with = with("abc");
+        recs[1].made_with = with("abc");
+        assert_eq!(
+            made_with(&recs),
+            "commit `abc` on X (no AVX-512), 2 CPUs (2 cells); \
+             commit not recorded on a CPU not recorded (1 cell)"
+        );
+        assert_eq!(made_with(&[]), "no cell finished");
+        // An old cell.json without the field still reads.
+        let mut json = serde_json::to_value(&recs[2]).unwrap();
+        json.as_object_mut().unwrap().remove("made_with");
+        let old: CellRecord = serde_json::from_value(json).unwrap();
+        assert_eq!(old.made_with, MadeWith::default());
+        // This build knows its commit and this machine its CPU.
+        let here = MadeWith::here();
+        assert!(
+            !here.commit.is_empty() && here.cpu.contains("CPUs"),
+            "{here:?}"
         );
     }
 }

@@ -85,18 +85,7 @@ pub fn allowed_cpus() -> Vec<usize> {
 
 /// The CPU a figure was measured on, and what it ran beside.
 pub fn machine(cpu_hog_processes: usize) -> Machine {
-    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-    let cpu_model = info
-        .lines()
-        .find_map(|l| l.strip_prefix("model name"))
-        .and_then(|l| l.split_once(':'))
-        .map_or_else(|| "unknown".into(), |(_, m)| m.trim().to_string());
-    Machine {
-        cpu_model,
-        avx512: info.split_whitespace().any(|w| w == "avx512f"),
-        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        cpu_hog_processes,
-    }
+    Machine::here(cpu_hog_processes)
 }
 
 #[cfg(test)]

@@ -158,6 +158,34 @@ pub struct Machine {
     pub cpu_hog_processes: usize,
 }
 
+impl Machine {
+    /// This machine, as Linux describes it (`/proc/cpuinfo`; "unknown" elsewhere).
+    pub fn here(cpu_hog_processes: usize) -> Self {
+        let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let cpu_model = info
+            .lines()
+            .find_map(|l| l.strip_prefix("model name"))
+            .and_then(|l| l.split_once(':'))
+            .map_or_else(|| "unknown".into(), |(_, m)| m.trim().to_string());
+        Self {
+            cpu_model,
+            avx512: info.split_whitespace().any(|w| w == "avx512f"),
+            cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            cpu_hog_processes,
+        }
+    }
+
+    /// The CPU alone: "AMD EPYC (no AVX-512), 2 CPUs".
+    pub fn cpu(&self) -> String {
+        format!(
+            "{} ({}), {} CPUs",
+            self.cpu_model,
+            if self.avx512 { "AVX-512" } else { "no AVX-512" },
+            self.cpus
+        )
+    }
+}
+
 impl std::fmt::Display for Machine {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(

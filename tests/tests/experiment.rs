@@ -182,6 +182,14 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         assert!(md.contains(section), "no {section:?} in summary.md:\n{md}");
     }
     assert!(!md.contains("## Failed cells"), "{md}");
+    // Each cell records the commit and CPU it ran on; the summary counts them.
+    let cell: serde_json::Value = mtanet_files::read_json(&out.join("paper/0/cell.json")).unwrap();
+    let commit = cell["made_with"]["commit"].as_str().unwrap_or_default();
+    assert!(!commit.is_empty(), "no commit in cell.json: {cell}");
+    assert!(
+        md.contains(&format!("- made with: commit `{commit}` on ")) && md.contains("(2 cells)"),
+        "{md}"
+    );
     for (name, _) in NAMES {
         let png = out.join("plots").join(format!("{name}.png"));
         let bytes = std::fs::read(&png).unwrap_or_default();
