@@ -79,7 +79,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     if let Some(cpus) = &args.cpus {
         load::confine(cpus)?;
     }
-    let machine = load::machine(hog.len());
+    let machine = mtanet_summaries::soak::Machine::here(hog.len());
     eprintln!("[soak] {machine}");
     let watch = PauseWatch::start(&load::allowed_cpus())?;
     let out = args.out.clone();

@@ -5,7 +5,6 @@
 use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, bail};
-use mtanet_summaries::soak::Machine;
 
 /// One busy process per core at normal priority (`yes > /dev/null`), until dropped.
 pub struct CpuHog(Vec<Child>);
@@ -83,11 +82,6 @@ pub fn allowed_cpus() -> Vec<usize> {
         .collect()
 }
 
-/// The CPU a figure was measured on, and what it ran beside.
-pub fn machine(cpu_hog_processes: usize) -> Machine {
-    Machine::here(cpu_hog_processes)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,6 +92,5 @@ mod tests {
             let e = confine(bad).unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
         }
-        assert!(machine(0).cpus >= 1);
     }
 }

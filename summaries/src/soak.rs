@@ -177,12 +177,13 @@ impl Machine {
 
     /// The CPU alone: "AMD EPYC (no AVX-512), 2 CPUs".
     pub fn cpu(&self) -> String {
-        format!(
-            "{} ({}), {} CPUs",
-            self.cpu_model,
-            if self.avx512 { "AVX-512" } else { "no AVX-512" },
-            self.cpus
-        )
+        format!("{}, {} CPUs", self.model(), self.cpus)
+    }
+
+    /// "AMD EPYC (no AVX-512)": the model and whether it has the wide vector units.
+    fn model(&self) -> String {
+        let simd = if self.avx512 { "AVX-512" } else { "no AVX-512" };
+        format!("{} ({simd})", self.cpu_model)
     }
 }
 
@@ -190,9 +191,8 @@ impl std::fmt::Display for Machine {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} ({}), {} CPU(s) for the run, {} CPU hog process(es) beside it",
-            self.cpu_model,
-            if self.avx512 { "AVX-512" } else { "no AVX-512" },
+            "{}, {} CPU(s) for the run, {} CPU hog process(es) beside it",
+            self.model(),
             self.cpus,
             self.cpu_hog_processes
         )
@@ -209,4 +209,31 @@ pub struct PauseSummary {
     pub per_minute: f64,
     pub worst_ms: f64,
     pub total_ms: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn this_machine_is_described_by_its_cpu_and_what_ran_beside_it() {
+        let m = Machine::here(2);
+        assert!(m.cpus >= 1 && m.cpu_hog_processes == 2, "{m:?}");
+        let shown = m.to_string();
+        assert!(
+            shown.starts_with(&m.cpu_model) && shown.ends_with("2 CPU hog process(es) beside it"),
+            "{shown}"
+        );
+        let avx = Machine {
+            avx512: true,
+            cpus: 2,
+            cpu_model: "X".into(),
+            cpu_hog_processes: 0,
+        };
+        assert_eq!(avx.cpu(), "X (AVX-512), 2 CPUs");
+        assert_eq!(
+            avx.to_string(),
+            "X (AVX-512), 2 CPU(s) for the run, 0 CPU hog process(es) beside it"
+        );
+    }
 }
