@@ -291,7 +291,10 @@ impl Agent {
             }
         }
         Ok(match self.mode {
-            Mode::ActiveInference => self.decided(self.committed, Driver::ActiveInference, plan),
+            Mode::ActiveInference => {
+                let w = self.cfg.reflex.apply(self.committed, t.line);
+                self.decided(w, Driver::ActiveInference, plan)
+            }
             // Arming: the rule's command held for the segment the first plan starts from.
             Mode::Fallback if self.arming => self.decided(self.committed, Driver::Fallback, None),
             Mode::Reactive if self.arming => self.decided(self.committed, Driver::Reactive, None),

@@ -40,6 +40,11 @@ pub struct CostConfig {
     pub position_floor: f32,
     /// Weight of the later imagined frames relative to the first: frame h gets `discount^h`.
     pub discount: f32,
+    /// The nearest image rows the risk looks at (0: all).
+    pub rows: usize,
+    /// Directions of the rows' positions the risk ignores: the centred frames' principal
+    /// components, largest first (how the line bends ahead, which steering cannot change).
+    pub free_modes: usize,
 }
 
 impl Default for CostConfig {
@@ -53,6 +58,8 @@ impl Default for CostConfig {
             lost_offset: 1.0,
             position_floor: 0.1,
             discount: 1.0,
+            rows: 0,
+            free_modes: 0,
         }
     }
 }
@@ -91,19 +98,24 @@ pub struct Cost {
 impl Cost {
     pub fn new(preferred: PreferredLine, cfg: CostConfig) -> Self {
         sequential_faer();
-        let rows = preferred.shape.height;
+        let height = preferred.shape.height;
+        let rows = Self::rows_of(&cfg, height);
+        let first = height - rows;
         let floor = f64::from(cfg.position_floor).powi(2);
         let cov = faer::Mat::<f64>::from_fn(rows, rows, |i, j| {
-            f64::from(preferred.position_cov[i * rows + j]) + if i == j { floor } else { 0.0 }
+            f64::from(preferred.position_cov[(first + i) * height + first + j])
+                + if i == j { floor } else { 0.0 }
         });
         // Symmetric positive definite (a covariance plus floor^2 I): invert by eigenvalues.
         let precision = match cov.self_adjoint_eigen(faer::Side::Lower) {
             Ok(evd) => {
                 let (s, u) = (evd.S().column_vector(), evd.U());
+                // Eigenvalues ascend: the last `free_modes` are the largest.
+                let kept = rows.saturating_sub(cfg.free_modes).max(1);
                 (0..rows * rows)
                     .map(|ij| {
                         let (i, j) = (ij / rows, ij % rows);
-                        (0..rows)
+                        (0..kept)
                             .map(|k| u[(i, k)] * u[(j, k)] / s[k].max(floor))
                             .sum::<f64>() as f32
                     })
@@ -131,6 +143,10 @@ impl Cost {
         cost
     }
 
+    fn rows_of(cfg: &CostConfig, height: usize) -> usize {
+        if cfg.rows == 0 { height } else { cfg.rows.min(height) }
+    }
+
     /// `d' P d / rows`.
     fn mahalanobis(&self, d: &[f32]) -> f32 {
         let rows = d.len();
@@ -152,14 +168,16 @@ impl Cost {
     pub fn risk(&self, frame: &[f32]) -> f32 {
         let p = &self.preferred;
         let feat = LineFeature::of(frame, p.shape, &p.contrast);
-        let rows = p.shape.height;
+        let rows = Self::rows_of(&self.cfg, p.shape.height);
+        let first = p.shape.height - rows;
         let mut d = vec![0.0; rows];
         let mut visible_sum = 0.0;
-        for r in 0..rows {
+        for i in 0..rows {
+            let r = first + i;
             // Fully visible with half the usual line mass (a line cut by the image edge or a
             // blurred prediction still counts); a row without the line sits at the mean.
             let visible = (feat.mass[r] / (0.5 * p.mass_mean[r]).max(0.25)).clamp(0.0, 1.0);
-            d[r] = visible * (feat.position[r] - p.position_mean[r]);
+            d[i] = visible * (feat.position[r] - p.position_mean[r]);
             visible_sum += visible;
         }
         let visible = visible_sum / rows as f32;

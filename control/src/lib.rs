@@ -18,6 +18,7 @@ pub mod drive;
 pub mod planner;
 pub mod preference;
 pub mod reactive;
+pub mod reflex;
 pub mod recovery;
 pub mod worker;
 

@@ -144,6 +144,7 @@ pub struct PreferenceLearner {
     run: u32,
     frames: std::collections::VecDeque<Vec<f32>>,
     seen: u64,
+    mirror: bool,
 }
 
 impl PreferenceLearner {
@@ -155,7 +156,14 @@ impl PreferenceLearner {
             run: 0,
             frames: Default::default(),
             seen: 0,
+            mirror: true,
         }
+    }
+
+    /// Learn from the frames alone, not also from their mirror images.
+    pub fn without_mirror(mut self) -> Self {
+        self.mirror = false;
+        self
     }
 
     /// Offers a frame with the line sensors' reading; only centred frames (only the middle
@@ -205,19 +213,28 @@ impl PreferenceLearner {
         if whole.len() < min_frames.max(2) / 2 {
             return None;
         }
-        let k = whole.len() as f64;
+        // The car and its camera are symmetric: a frame and its mirror image (positions
+        // negated) are equally centred, so the preference is learnt from both and does not
+        // lean towards the side the learning track happens to bend to.
+        let signs: &[f64] = if self.mirror { &[1.0, -1.0] } else { &[1.0] };
+        let k = (whole.len() * signs.len()) as f64;
         let mut position_mean = vec![0.0f64; rows];
         for f in &whole {
-            for r in 0..rows {
-                position_mean[r] += f64::from(f.position[r]) / k;
+            for &sg in signs {
+                for r in 0..rows {
+                    position_mean[r] += sg * f64::from(f.position[r]) / k;
+                }
             }
         }
         let mut cov = vec![0.0f64; rows * rows];
         for f in &whole {
-            for i in 0..rows {
-                let di = f64::from(f.position[i]) - position_mean[i];
-                for j in 0..rows {
-                    cov[i * rows + j] += di * (f64::from(f.position[j]) - position_mean[j]) / k;
+            for &sg in signs {
+                for i in 0..rows {
+                    let di = sg * f64::from(f.position[i]) - position_mean[i];
+                    for j in 0..rows {
+                        cov[i * rows + j] +=
+                            di * (sg * f64::from(f.position[j]) - position_mean[j]) / k;
+                    }
                 }
             }
         }

@@ -46,7 +46,13 @@ pub struct TracePoint {
     pub step: u64,
     pub x: f32,
     pub y: f32,
+    /// Signed distance of the line from the sensor bar (m, + left) and the line's curvature
+    /// there (1/m).
+    pub lateral_m: f32,
+    pub curvature: f32,
     pub driver: Driver,
+    /// The command sent.
+    pub wheels: [f32; 2],
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -62,6 +68,9 @@ pub struct DriveReport {
     pub lateral_reactive_m: Option<f64>,
     pub lateral_active_inference_m: Option<f64>,
     pub agent: AgentStats,
+    /// Who drove and how well, from the score: lap times, the longest fallback, lateral error
+    /// and fallbacks by the line's curvature.
+    pub control: mtanet_scenes::score::ControlSummary,
     /// Wall time of the plans taken up.
     pub plan: LatencySummary,
     pub wall_seconds: f64,
@@ -113,7 +122,10 @@ where
                 step: f.step,
                 x: s.truth.x as f32,
                 y: s.truth.y as f32,
+                lateral_m: s.truth.lateral_m as f32,
+                curvature: car.world().track().curvature_at(s.truth.track_s, 0.1) as f32,
                 driver: d.driver,
+                wheels: d.wheels,
             });
         }
         let stepped = car.step(d.wheels, d.driver.source());
@@ -141,6 +153,7 @@ where
     report.lateral_active_inference_m =
         score.lateral_mean_of(|s| s == CommandSource::ActiveInference);
     report.agent = agent.stats;
+    report.control = score.control();
     report.plan = LatencySummary::of_ns(&plan_ns);
     report.wall_seconds = wall.elapsed().as_secs_f64();
     Ok(report)

@@ -34,11 +34,14 @@ pub struct ProbeArgs {
 #[derive(Debug, clap::Args)]
 pub struct DriveArgs {
     /// Plan through this checkpoint's model...
-    #[arg(long, required_unless_present = "oracle", conflicts_with = "oracle")]
+    #[arg(long, required_unless_present_any = ["oracle", "rule"], conflicts_with_all = ["oracle", "rule"])]
     checkpoint: Option<PathBuf>,
-    /// ...or through the MuJoCo world itself.
-    #[arg(long)]
+    /// ...or through the MuJoCo world itself...
+    #[arg(long, conflicts_with = "rule")]
     oracle: bool,
+    /// ...or let the reactive rule drive alone (no model, no exploration): the baseline.
+    #[arg(long)]
+    rule: bool,
     #[arg(long)]
     track: Option<PathBuf>,
     #[arg(long)]
@@ -49,6 +52,9 @@ pub struct DriveArgs {
     /// Stop once this many laps were driven by active inference (0: drive all the steps).
     #[arg(long, default_value_t = 0)]
     laps: u32,
+    /// Keep every n-th step in the report's trace (0: none).
+    #[arg(long, default_value_t = 0)]
+    trace_every: u64,
     /// The oracle's model step, in control steps (a checkpoint brings its own).
     #[arg(long, default_value_t = 5)]
     frame_skip: usize,
@@ -104,7 +110,9 @@ impl AgentModel for Learned {
 
 pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
     tch::set_num_threads(1);
-    let (file, scene, agent_cfg) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
+    let (file, scene, mut agent_cfg) =
+        scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
+    agent_cfg.enabled &= !args.rule;
     let reactive: mtanet_control::ReactiveConfig = file.section("predictor.reactive")?;
     // Exploration is for learning: an evaluation drives without it.
     let off = ExplorationConfig {
@@ -123,7 +131,7 @@ pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
     let run = DriveConfig {
         max_steps: args.steps,
         stop_after_ai_laps: args.laps,
-        trace_every: 0,
+        trace_every: args.trace_every,
         ..Default::default()
     };
     let report = match &args.checkpoint {
@@ -149,6 +157,40 @@ pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
             )?
         }
     };
+    eprint!("{}", curvature_table(&report));
     println!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())
+}
+
+/// Lateral error and fallbacks by curvature, and lap times, as a console table.
+fn curvature_table(r: &mtanet_eval::DriveReport) -> String {
+    use std::fmt::Write;
+    let mm = |v: Option<f64>| v.map_or("-".to_string(), |m| format!("{:.2}", m * 1e3));
+    let mut out = String::from(
+        "|curvature| 1/m   AI steps  AI mm   other steps  other mm  fallbacks begun\n",
+    );
+    for b in &r.control.by_curvature {
+        let _ = writeln!(
+            out,
+            "{:>5.1} - {:<7.1} {:>8}  {:>6}  {:>11}  {:>8}  {:>15}",
+            b.min_curvature,
+            b.max_curvature.unwrap_or(f64::INFINITY),
+            b.steps_active_inference,
+            mm(b.lateral_active_inference_m),
+            b.steps_other,
+            mm(b.lateral_other_m),
+            b.fallbacks
+        );
+    }
+    let s = |v: Option<f64>| v.map_or("-".to_string(), |t| format!("{t:.2} s"));
+    let _ = writeln!(
+        out,
+        "laps {} ({} by active inference); lap time {} (active inference {}); longest fallback {:.1} s",
+        r.laps,
+        r.laps_under_active_inference,
+        s(r.control.lap_time_s),
+        s(r.control.lap_time_active_inference_s),
+        r.control.longest_fallback_s
+    );
+    out
 }

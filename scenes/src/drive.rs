@@ -78,7 +78,7 @@ impl<'w> Drive<'w> {
             episode: 0,
             laps_before: 0,
             sensed: None,
-            score: Score::default(),
+            score: Score::new(period),
         }
     }
 
@@ -106,7 +106,9 @@ impl<'w> Drive<'w> {
         let verdict = self
             .referee
             .judge(&self.world.truth(), self.world.progress_m());
-        self.score.record(&from, source, laps);
+        // The line's curvature where the sensor bar was, over 10 cm either side.
+        let curvature = self.world.track().curvature_at(from.track_s, 0.1);
+        self.score.record(&from, curvature, source, laps);
         let reset = (verdict != Verdict::Fine).then(|| {
             self.score.end_episode();
             self.laps_before = laps;

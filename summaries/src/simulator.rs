@@ -79,7 +79,40 @@ pub struct ControlSummary {
     /// Laps completed while active inference drove every step since the lap before (or since
     /// it took over).
     pub laps_completed_under_active_inference: u32,
+    /// Median simulated seconds of a whole lap (from one lap line crossing to the next in one
+    /// episode), over every such lap, and over those active inference drove start to end.
+    #[serde(default)]
+    pub lap_time_s: Option<f64>,
+    #[serde(default)]
+    pub lap_time_active_inference_s: Option<f64>,
+    /// The longest stretch the fallback drove without a break, seconds (0: none).
+    #[serde(default)]
+    pub longest_fallback_s: f64,
+    /// Lateral error and fallbacks by the line's curvature under the sensor bar.
+    #[serde(default)]
+    pub by_curvature: Vec<CurvatureBin>,
 }
+
+/// Where on the line the steps were: |curvature| in `[min, max)` 1/m (curvature of the circle
+/// through the line 10 cm either side of the sensor bar's projection).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct CurvatureBin {
+    pub min_curvature: f64,
+    /// None: no upper bound.
+    pub max_curvature: Option<f64>,
+    /// Steps by active inference, and by any other source.
+    pub steps_active_inference: u64,
+    pub steps_other: u64,
+    /// Mean |lateral error| (m) of those steps.
+    pub lateral_active_inference_m: Option<f64>,
+    pub lateral_other_m: Option<f64>,
+    /// Fallbacks that began here.
+    pub fallbacks: u64,
+}
+
+/// The bins' edges, 1/m: straights and sweeping arcs, the oval's 2.5 1/m bends, corners, and
+/// hairpins from 5 and from 7.5 1/m (the square's corners are 10 1/m).
+pub const CURVATURE_EDGES: [f64; 6] = [0.0, 1.5, 3.5, 5.0, 7.5, f64::INFINITY];
 
 /// Mean and max of |lateral error| in metres.
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]

@@ -19,6 +19,13 @@ use crate::{DEFAULT_LINE_WIDTH_M, Track, TrackError};
 
 /// How a generated track is named wherever a track file is expected.
 pub const GENERATED_PREFIX: &str = "generated:";
+/// A generated track with hairpins: `hairpins:N` (bends down to `HAIRPIN_DEFAULT_CURVATURE`),
+/// or `hairpins:N:K` with its tightest curvature K in 1/m.
+pub const HAIRPINS_PREFIX: &str = "hairpins:";
+/// The tightest curvature of `hairpins:N` (1/m): the shipped square's corners.
+pub const HAIRPIN_DEFAULT_CURVATURE: f64 = 10.0;
+/// The gentlest tightest curvature `hairpins:N:K` takes (1/m).
+const HAIRPIN_MIN_CURVATURE: f64 = 5.0;
 /// Tightest radius the generator draws: well above `MIN_BEND_RADIUS_M` (0.07 m) and above the
 /// shipped square's 0.1 m corners, so the teacher takes every bend without being tuned for it.
 pub const GENERATED_MIN_RADIUS_M: f64 = 0.13;
@@ -31,6 +38,42 @@ const MAX_CANDIDATES: u32 = 2000;
 /// the same double as parsing the decimal text.
 const PER_M: f64 = 1e5;
 
+/// What kind of track the generator draws.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Style {
+    /// Tightest radius of any bend, metres.
+    pub min_radius_m: f64,
+    /// Hairpins are drawn with radii in `[min_radius_m, hairpin_max_radius_m)`.
+    pub hairpin_max_radius_m: f64,
+    /// Cumulative shares (percent) of corners, sweeping bends and S-bends; hairpins the rest.
+    pub shares: [u32; 3],
+    /// A candidate with fewer hairpins is drawn again.
+    pub min_hairpins: usize,
+}
+
+impl Style {
+    /// `generated:N`: every feature alike, as the generator always drew them (names in docs
+    /// and tests keep their tracks).
+    pub const MIXED: Style = Style {
+        min_radius_m: GENERATED_MIN_RADIUS_M,
+        hairpin_max_radius_m: 0.2,
+        shares: [35, 45, 75],
+        min_hairpins: 0,
+    };
+
+    /// `hairpins:N:K`: at least two hairpins, half the features hairpins, bends down to a
+    /// radius of 1/K.
+    pub fn hairpins(curvature: f64) -> Style {
+        let r = 1.0 / curvature;
+        Style {
+            min_radius_m: r,
+            hairpin_max_radius_m: r + 0.04,
+            shares: [20, 25, 50],
+            min_hairpins: 2,
+        }
+    }
+}
+
 /// The track of seed `seed`.
 pub fn generate(seed: u64) -> Result<Track, TrackError> {
     generate_counting(seed).map(|(t, _)| t)
@@ -38,10 +81,19 @@ pub fn generate(seed: u64) -> Result<Track, TrackError> {
 
 /// The track of seed `seed` and how many candidates were drawn to find it (1 = the first).
 pub fn generate_counting(seed: u64) -> Result<(Track, u32), TrackError> {
-    let name = format!("{GENERATED_PREFIX}{seed}");
+    generate_styled(&format!("{GENERATED_PREFIX}{seed}"), seed, &Style::MIXED)
+}
+
+/// A track of seed `seed` in `style`, named `name`, and the candidates drawn to find it.
+pub(crate) fn generate_styled(
+    name: &str,
+    seed: u64,
+    style: &Style,
+) -> Result<(Track, u32), TrackError> {
+    let name = name.to_string();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for candidate in 1..=MAX_CANDIDATES {
-        let Some(mut prof) = profile::draw(&mut rng) else {
+        let Some(mut prof) = profile::draw(&mut rng, style) else {
             continue;
         };
         let Some(points) = trace::close(&mut prof) else {
@@ -64,14 +116,35 @@ pub fn generate_counting(seed: u64) -> Result<(Track, u32), TrackError> {
     })
 }
 
-/// The seed if `path` names a generated track (`generated:N`), `None` for a file.
-pub(crate) fn seed_of(path: &Path) -> Result<Option<u64>, TrackError> {
-    let Some(seed) = path.to_str().and_then(|s| s.strip_prefix(GENERATED_PREFIX)) else {
+/// The seed and style if `path` names a generated track (`generated:N`, `hairpins:N`,
+/// `hairpins:N:K`), `None` for a file.
+pub(crate) fn spec_of(path: &Path) -> Result<Option<(u64, Style)>, TrackError> {
+    let bad = || TrackError::GeneratedName {
+        path: path.to_path_buf(),
+    };
+    let Some(s) = path.to_str() else {
         return Ok(None);
     };
-    seed.parse()
-        .map(Some)
-        .map_err(|_| TrackError::GeneratedName {
+    if let Some(seed) = s.strip_prefix(GENERATED_PREFIX) {
+        return seed.parse().map(|n| Some((n, Style::MIXED))).map_err(|_| bad());
+    }
+    let Some(rest) = s.strip_prefix(HAIRPINS_PREFIX) else {
+        return Ok(None);
+    };
+    let (seed, k) = match rest.split_once(':') {
+        Some((seed, k)) => (seed, k.parse::<f64>().map_err(|_| bad())?),
+        None => (rest, HAIRPIN_DEFAULT_CURVATURE),
+    };
+    // From a hairpin of 0.2 m radius to the tightest bend the track checks allow.
+    let (k_min, k_max) = (HAIRPIN_MIN_CURVATURE, 1.0 / crate::check::MIN_BEND_RADIUS_M);
+    if !(k_min..=k_max).contains(&k) {
+        return Err(TrackError::HairpinCurvature {
             path: path.to_path_buf(),
-        })
+            curvature: k,
+            min: k_min,
+            max: k_max,
+        });
+    }
+    let seed = seed.parse().map_err(|_| bad())?;
+    Ok(Some((seed, Style::hairpins(k))))
 }

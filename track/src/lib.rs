@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 
 pub use check::{MIN_BEND_RADIUS_M, MIN_CLEARANCE_M};
 pub use generate::{
-    GENERATED_MIN_RADIUS_M, GENERATED_PREFIX, LENGTH_RANGE_M, generate, generate_counting,
+    GENERATED_MIN_RADIUS_M, GENERATED_PREFIX, HAIRPIN_DEFAULT_CURVATURE, HAIRPINS_PREFIX,
+    LENGTH_RANGE_M, generate, generate_counting,
 };
 
 /// Line width used when the file does not say (metres; the paper's tape is about this wide).
@@ -75,11 +76,22 @@ pub enum TrackError {
         dist_m: f64,
         min_m: f64,
     },
-    /// `generated:` is not followed by a seed.
+    /// `generated:` or `hairpins:` is not followed by a seed (and a curvature).
     #[error(
-        "track {path}: expected `generated:N` with N a whole number from 0 to 2^64-1 (the seed)"
+        "track {path}: expected `generated:N` or `hairpins:N[:K]` with N a whole number from 0 to 2^64-1 (the seed) and K the tightest curvature in 1/m"
     )]
     GeneratedName { path: PathBuf },
+    /// `hairpins:N:K` asks for bends tighter than the checks allow, or no tighter than
+    /// `generated:N`'s.
+    #[error(
+        "track {path}: tightest curvature {curvature} 1/m is outside {min:.2}..={max:.2} 1/m"
+    )]
+    HairpinCurvature {
+        path: PathBuf,
+        curvature: f64,
+        min: f64,
+        max: f64,
+    },
     /// No candidate of the generator passed the checks (a bug in the generator: a few tries
     /// are normal).
     #[error("track {path}: the generator found no valid track in {candidates} candidates")]
@@ -126,8 +138,8 @@ impl Track {
     /// Loads and validates a track file, or generates the track when `path` is `generated:N`:
     /// every config key and flag that names a track goes through here, so all accept both.
     pub fn load(path: &Path) -> Result<Track, TrackError> {
-        if let Some(seed) = generate::seed_of(path)? {
-            return generate(seed);
+        if let Some((seed, style)) = generate::spec_of(path)? {
+            return generate::generate_styled(&path.to_string_lossy(), seed, &style).map(|(t, _)| t);
         }
         let text = std::fs::read_to_string(path).map_err(|source| TrackError::Io {
             path: path.to_path_buf(),

@@ -135,3 +135,54 @@ fn a_bad_generated_name_is_named_in_the_error() {
     let err = Track::load(Path::new("./generated:7")).unwrap_err();
     assert!(matches!(err, TrackError::Io { .. }), "{err}");
 }
+
+/// Largest |curvature| along the line (1/m), sampled every centimetre over 10 cm windows.
+fn max_curvature(t: &Track) -> f64 {
+    let n = (t.length_m() / 0.01) as usize;
+    (0..n)
+        .map(|i| t.curvature_at(i as f64 * 0.01, 0.05).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn hairpin_tracks_bend_as_tightly_as_asked_and_generated_names_keep_their_tracks() {
+    let started = Instant::now();
+    for (k, seeds) in [(10.0, 0..30u64), (7.0, 0..10)] {
+        for seed in seeds {
+            let name = format!("hairpins:{seed}:{k}");
+            let t = Track::load(Path::new(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(t.path(), Path::new(&name));
+            let r = t.min_bend_radius_m();
+            assert!(r >= 0.95 / k, "{name}: bend radius {r}");
+            let kmax = max_curvature(&t);
+            // Hairpins are drawn with radii from 1/k to 1/k + 4 cm.
+            assert!(
+                kmax >= 1.0 / (1.0 / k + 0.045) && kmax <= 1.05 * k,
+                "{name}: tightest curvature {kmax}, asked for {k}"
+            );
+            let len = t.length_m();
+            assert!((LENGTH_RANGE_M.0..=LENGTH_RANGE_M.1).contains(&len), "{name}: {len} m");
+        }
+    }
+    // The default knob is the square's corners.
+    let a = Track::load(Path::new("hairpins:3")).unwrap();
+    let b = Track::load(Path::new("hairpins:3:10")).unwrap();
+    assert_eq!(a.points(), b.points());
+    assert!(started.elapsed() < Duration::from_secs(30));
+    // `generated:N` is what it always was (docs and tests name these tracks): a checksum of
+    // generated:101's waypoints, taken before hairpin tracks existed.
+    let sum: f64 = generate(101)
+        .unwrap()
+        .points()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (i as f64 + 1.0) * (p[0] + 2.0 * p[1]))
+        .sum();
+    assert_eq!(format!("{sum:.5}"), "-2059.12863");
+    for bad in ["hairpins:x", "hairpins:1:20", "hairpins:1:2", "hairpins:1:k"] {
+        assert!(
+            Track::load(Path::new(bad)).is_err(),
+            "{bad} must be refused"
+        );
+    }
+}

@@ -82,6 +82,7 @@ pub struct AgentConfig {
     pub lockstep_wait_ms: f64,
     pub cost: CostConfig,
     pub planner: PlannerConfig,
+    pub reflex: crate::reflex::ReflexConfig,
 }
 
 impl Default for AgentConfig {
@@ -104,6 +105,7 @@ impl Default for AgentConfig {
             lockstep_wait_ms: 2000.0,
             cost: CostConfig::default(),
             planner: PlannerConfig::default(),
+            reflex: Default::default(),
         }
     }
 }

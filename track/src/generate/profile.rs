@@ -6,7 +6,7 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use super::{GENERATED_MIN_RADIUS_M as MIN_RADIUS_M, LENGTH_RANGE_M};
+use super::{LENGTH_RANGE_M, Style};
 
 /// One stretch of constant curvature (`k` = 1/radius, left positive; 0 on a straight).
 #[derive(Debug, Clone, Copy)]
@@ -50,7 +50,7 @@ enum Item {
 
 /// Draws one candidate; `None` when its features cannot be made to turn once round or do not
 /// fit the drawn length (the caller then draws again from the same generator).
-pub(super) fn draw(rng: &mut ChaCha8Rng) -> Option<Profile> {
+pub(super) fn draw(rng: &mut ChaCha8Rng, style: &Style) -> Option<Profile> {
     let target = rng.random_range(LENGTH_RANGE_M.0 + 0.3..LENGTH_RANGE_M.1 - 0.3);
     // Roughly one feature per metre: a long loop of few features is mostly straights.
     let n = rng.random_range((target / 1.3) as usize..=(target / 0.8) as usize);
@@ -62,26 +62,36 @@ pub(super) fn draw(rng: &mut ChaCha8Rng) -> Option<Profile> {
         // Lean towards the turn still missing, so that few draws need scaling beyond reach.
         let missing = (TAU - net_turn(&items)) / (n - i) as f64;
         let p_left = (0.5 + 0.4 * missing / FRAC_PI_2).clamp(0.15, 0.85);
-        feature(rng, &mut items, p_left);
+        feature(rng, &mut items, p_left, style);
         if i + 1 < n {
             items.push(Item::Straight {
                 min: STRAIGHT_MIN_M,
             });
         }
     }
+    let hairpins = items
+        .iter()
+        .filter(|it| matches!(it, Item::Arc { fixed: true, .. }))
+        .count();
+    if hairpins < style.min_hairpins {
+        return None;
+    }
     turn_once_round(&mut items)?;
     let mirror = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
     build(rng, &items, target, mirror)
 }
 
-/// Appends one feature: a corner, a sweeping bend, an S-bend or a hairpin.
-fn feature(rng: &mut ChaCha8Rng, items: &mut Vec<Item>, p_left: f64) {
+/// Appends one feature: a corner, a sweeping bend, an S-bend or a hairpin, drawn by the style's
+/// shares (percent, cumulative) and its tightest radius.
+fn feature(rng: &mut ChaCha8Rng, items: &mut Vec<Item>, p_left: f64, style: &Style) {
+    let min_r = style.min_radius_m;
     let deg = |d: f64| d.to_radians();
     let s = if rng.random_bool(p_left) { 1.0 } else { -1.0 };
-    // Shares in percent: corners, sweeping bends, S-bends, hairpins.
-    match rng.random_range(0..100) {
-        0..35 => {
-            let r = rng.random_range(MIN_RADIUS_M + 0.02..0.5);
+    let [corners, sweeping, s_bends] = style.shares;
+    let pick = rng.random_range(0..100);
+    match pick {
+        p if p < corners => {
+            let r = rng.random_range(min_r + 0.02..0.5);
             let a = rng.random_range(deg(40.0)..deg(135.0));
             items.push(Item::Arc {
                 k: s / r,
@@ -89,7 +99,7 @@ fn feature(rng: &mut ChaCha8Rng, items: &mut Vec<Item>, p_left: f64) {
                 fixed: false,
             });
         }
-        35..45 => {
+        p if p < sweeping => {
             let r = rng.random_range(0.5..1.2);
             let a = rng.random_range(deg(20.0)..deg(60.0));
             items.push(Item::Arc {
@@ -98,10 +108,10 @@ fn feature(rng: &mut ChaCha8Rng, items: &mut Vec<Item>, p_left: f64) {
                 fixed: false,
             });
         }
-        45..75 => {
+        p if p < s_bends => {
             let (r1, r2) = (
-                rng.random_range(MIN_RADIUS_M + 0.02..0.35),
-                rng.random_range(MIN_RADIUS_M + 0.02..0.35),
+                rng.random_range(min_r + 0.02..0.35),
+                rng.random_range(min_r + 0.02..0.35),
             );
             let a1 = rng.random_range(deg(40.0)..deg(100.0));
             let a2 = a1 * rng.random_range(0.8..1.25);
@@ -120,7 +130,7 @@ fn feature(rng: &mut ChaCha8Rng, items: &mut Vec<Item>, p_left: f64) {
             });
         }
         _ => {
-            let r = rng.random_range(MIN_RADIUS_M..0.2);
+            let r = rng.random_range(min_r..style.hairpin_max_radius_m);
             let a = rng.random_range(deg(165.0)..deg(195.0));
             items.push(Item::Arc {
                 k: s / r,
