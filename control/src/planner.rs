@@ -97,7 +97,7 @@ impl Default for PlannerConfig {
             max_speed: 12.0,
             max_turn: 8.0,
             speed_std: 3.0,
-            turn_std: 4.0,
+            turn_std: 2.0,
             seed: 0,
         }
     }

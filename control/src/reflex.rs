@@ -15,6 +15,9 @@ pub struct ReflexConfig {
     pub gentle: f32,
     /// ...and when a side sensor sees it alone (0 and 0: no reflex, the plan alone steers).
     pub strong: f32,
+    /// The most forward speed (rad/s) while a side sensor sees the line alone: the line is
+    /// slipping away, most often at the exit of a bend taken too fast (0: no limit).
+    pub strong_max_speed: f32,
 }
 
 impl Default for ReflexConfig {
@@ -22,6 +25,7 @@ impl Default for ReflexConfig {
         Self {
             gentle: 1.5,
             strong: 4.0,
+            strong_max_speed: 5.0,
         }
     }
 }
@@ -42,6 +46,32 @@ impl ReflexConfig {
     /// `planned` with the reflex's turn added.
     pub fn apply(&self, planned: Wheels, line: [bool; 3]) -> Wheels {
         let d = Drive::from_wheels(planned);
-        Drive::new(d.speed, d.turn + self.turn(line)).wheels()
+        let side_alone = matches!(line, [true, false, false] | [false, false, true]);
+        let speed = match side_alone && self.strong_max_speed > 0.0 {
+            true => d.speed.min(self.strong_max_speed),
+            false => d.speed,
+        };
+        Drive::new(speed, d.turn + self.turn(line)).wheels()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn turns_toward_the_side_that_sees_the_line_and_slows_when_it_slips_away() {
+        let r = ReflexConfig::default();
+        let fast = Drive::new(10.0, 0.0).wheels();
+        let centred = Drive::from_wheels(r.apply(fast, [false, true, false]));
+        assert_eq!((centred.speed, centred.turn), (10.0, 0.0), "preferred reading");
+        let left = Drive::from_wheels(r.apply(fast, [true, true, false]));
+        assert!((left.turn - r.gentle).abs() < 1e-5 && left.speed == 10.0);
+        let slipping = Drive::from_wheels(r.apply(fast, [false, false, true]));
+        assert!((slipping.turn + r.strong).abs() < 1e-5, "{slipping:?}");
+        assert!((slipping.speed - r.strong_max_speed).abs() < 1e-5, "{slipping:?}");
+        let slow = Drive::new(3.0, 0.0).wheels();
+        let kept = Drive::from_wheels(r.apply(slow, [true, false, false]));
+        assert!((kept.speed - 3.0).abs() < 1e-5, "a slower plan is not sped up");
     }
 }

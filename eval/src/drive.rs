@@ -159,6 +159,29 @@ where
     Ok(report)
 }
 
+impl SeesWorld for mtanet_control::Blind {}
+
+/// The reactive rule alone on `world` for `cfg.max_steps` (no model, no exploration, no active
+/// inference): the clean baseline a learnt driver is compared with on the same track and time.
+pub fn rule_alone(
+    world: &mut World,
+    reactive: &mtanet_control::ReactiveConfig,
+    cfg: &DriveConfig,
+) -> anyhow::Result<DriveReport> {
+    use mtanet_control::{AgentConfig, Blind, ExplorationConfig, FrameShape, NoPlans};
+    let off = AgentConfig {
+        enabled: false,
+        ..Default::default()
+    };
+    let no_exploration = ExplorationConfig {
+        enabled: false,
+        ..Default::default()
+    };
+    let period = world.config().control_period_s as f32;
+    let mut agent = Agent::new(&off, reactive, &no_exploration, FrameShape::CAR, period);
+    drive(world, &mut agent, &mut Blind, &mut NoPlans, cfg)
+}
+
 /// A drive as recorded: per control step the frame, the command in force that led to it
 /// (`applied[i]`: frame i-1 -> i), and
 /// where the car really was (for analysis; a model never sees it).

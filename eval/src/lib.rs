@@ -8,6 +8,6 @@ pub mod figure;
 pub mod oracle;
 pub mod probe;
 
-pub use drive::{DriveConfig, DriveReport, drive};
+pub use drive::{DriveConfig, DriveReport, drive, rule_alone};
 pub use oracle::{OracleImagination, OracleModel, SeesWorld};
 pub use probe::{ProbeConfig, ProbeReport, probe};

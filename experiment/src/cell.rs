@@ -1,6 +1,6 @@
 //! One cell from an empty folder: learn from scratch on the learn track, score the learnt
-//! checkpoint on the held-out drive, drive each evaluation track from it with no learning,
-//! then `cell.json` (atomically, last: only a whole cell counts as done).
+//! checkpoint on the held-out drive, drive each evaluation track from it with no learning and
+//! with the reactive rule alone (the baseline), then `cell.json` (atomically, last: only a whole cell counts as done).
 
 use std::path::Path;
 use std::time::Instant;
@@ -38,6 +38,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
         out: cell.dir.join("learn"),
         config: &config,
         checkpoint: None,
+        rule: false,
         namespace: format!("{}r0", cell.namespace),
     };
     let in_run = |run: &Run, r: anyhow::Result<Metrics>| {
@@ -49,18 +50,24 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
     let metrics = in_run(&learn, learn_run(&learn, heldout, live, slot))?;
     let mut rows = vec![row(Phase::Learn, &key.learn_track, metrics)];
     let model = learn.out.join("model.safetensors");
+    let n = key.eval_tracks.len();
     for (k, track) in key.eval_tracks.iter().enumerate() {
-        let eval = Run {
-            label: format!("{} eval {}", cell.label(), track.display()),
-            track,
-            sim_seconds: key.eval_sim_seconds,
-            out: cell.dir.join(format!("eval-{}", track_slug(track))),
-            config: &config,
-            checkpoint: Some(&model),
-            namespace: format!("{}r{}", cell.namespace, k + 1),
-        };
-        let m = up(&eval, live, slot).and_then(|()| Metrics::of_run(&eval.out));
-        rows.push(row(Phase::Eval, track, in_run(&eval, m)?));
+        // The learnt driver, then the rule alone on the same track for the same time.
+        for (phase, r) in [(Phase::Eval, k + 1), (Phase::Rule, n + k + 1)] {
+            let rule = phase == Phase::Rule;
+            let run = Run {
+                label: format!("{} {} {}", cell.label(), phase.name(), track.display()),
+                track,
+                sim_seconds: key.eval_sim_seconds,
+                out: cell.dir.join(format!("{}-{}", phase.name(), track_slug(track))),
+                config: &config,
+                checkpoint: (!rule).then_some(model.as_path()),
+                rule,
+                namespace: format!("{}r{r}", cell.namespace),
+            };
+            let m = up(&run, live, slot).and_then(|()| Metrics::of_run(&run.out));
+            rows.push(row(phase, track, in_run(&run, m)?));
+        }
     }
     let record = CellRecord {
         key: key.clone(),

@@ -17,6 +17,7 @@ pub mod run;
 pub mod spec;
 pub mod stats;
 pub mod summary;
+pub mod versus;
 
 use std::path::{Path, PathBuf};
 
@@ -165,6 +166,7 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
     };
     summary::summary_md(&args.out.join("summary.md"), &inputs)?;
     plots::write(&args.out.join("plots"), &spec, &records)?;
+    versus::plot(&args.out.join("plots"), &records, &spec.variants)?;
     eprintln!(
         "[experiment] {} of {} cells finished; {}",
         records.len(),

@@ -11,21 +11,25 @@ use serde::{Deserialize, Serialize};
 use crate::metrics::Metrics;
 use crate::spec::{Heldout, Spec};
 
-/// `learn`: from scratch on the learn track; `eval`: the learnt checkpoint, no learning.
+/// `learn`: from scratch on the learn track; `eval`: the learnt checkpoint, no learning;
+/// `rule`: the reactive rule alone on the evaluation track (no model, no exploration), the
+/// baseline each evaluation run is compared with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Phase {
     Learn,
     Eval,
+    Rule,
 }
 
 impl Phase {
-    pub const ALL: [Phase; 2] = [Phase::Learn, Phase::Eval];
+    pub const ALL: [Phase; 3] = [Phase::Learn, Phase::Eval, Phase::Rule];
 
     pub fn name(self) -> &'static str {
         match self {
             Phase::Learn => "learn",
             Phase::Eval => "eval",
+            Phase::Rule => "rule",
         }
     }
 }

@@ -26,6 +26,11 @@ pub struct Metrics {
     pub lateral_reactive_m: Option<f64>,
     pub lateral_active_inference_m: Option<f64>,
     pub lateral_fallback_m: Option<f64>,
+    pub lateral_all_m: Option<f64>,
+    pub lap_time_s: Option<f64>,
+    pub lap_time_active_inference_s: Option<f64>,
+    pub longest_fallback_s: Option<f64>,
+    pub laps_after_first_active_inference: Option<f64>,
     pub heldout_over_copy_last: Option<f64>,
     pub probe: Option<f64>,
     pub trainer_updates: Option<f64>,
@@ -48,7 +53,7 @@ pub struct Metrics {
 }
 
 /// The metric columns in results.csv order, with what each means (summary.md, plots).
-pub const NAMES: [(&str, &str); 26] = [
+pub const NAMES: [(&str, &str); 31] = [
     (
         "takeover_s",
         "simulated s until active inference first drives and then holds the wheel >= 90% of the next 60 s",
@@ -73,6 +78,26 @@ pub const NAMES: [(&str, &str); 26] = [
     (
         "lateral_fallback_m",
         "mean absolute lateral error (m) over the fallback's steps",
+    ),
+    (
+        "lateral_all_m",
+        "mean absolute lateral error (m) over every step (rule rows: the rule alone's)",
+    ),
+    (
+        "lap_time_s",
+        "median simulated s of a whole lap, every driver (rule rows: the rule alone's)",
+    ),
+    (
+        "lap_time_active_inference_s",
+        "median simulated s of a lap active inference drove from start to end",
+    ),
+    (
+        "longest_fallback_s",
+        "the longest stretch the fallback drove without a break (s)",
+    ),
+    (
+        "laps_after_first_active_inference",
+        "share of the laps after the first that active inference drove from start to end",
     ),
     (
         "heldout_over_copy_last",
@@ -133,7 +158,7 @@ pub const NAMES: [(&str, &str); 26] = [
 
 impl Metrics {
     /// The values in [`NAMES`] order.
-    pub fn values(&self) -> [Option<f64>; 26] {
+    pub fn values(&self) -> [Option<f64>; 31] {
         [
             self.takeover_s,
             self.laps,
@@ -142,6 +167,11 @@ impl Metrics {
             self.lateral_reactive_m,
             self.lateral_active_inference_m,
             self.lateral_fallback_m,
+            self.lateral_all_m,
+            self.lap_time_s,
+            self.lap_time_active_inference_s,
+            self.longest_fallback_s,
+            self.laps_after_first_active_inference,
             self.heldout_over_copy_last,
             self.probe,
             self.trainer_updates,
@@ -211,12 +241,24 @@ impl Metrics {
             lateral_reactive_m: r.lateral_error_m.reactive_mean,
             lateral_active_inference_m: r.lateral_error_m.active_inference_mean,
             lateral_fallback_m: r.lateral_error_m.fallback_mean,
+            lateral_all_m: Some(r.lateral_error_m.all_mean),
+            lap_time_s: r.laps.lap_time_s,
+            lap_time_active_inference_s: r.laps.lap_time_active_inference_s,
+            longest_fallback_s: Some(r.control.longest_fallback_s),
+            laps_after_first_active_inference: after_first_share(&r.laps),
             heldout_over_copy_last: None,
             probe: r.probe.rank_correlation,
             trainer_updates: r.trainer.updates.map(|u| u as f64),
             ..Self::default()
         })
     }
+}
+
+/// Laps active inference drove whole, over the laps after the first (that one begins before it
+/// can take over); None with fewer than two laps.
+fn after_first_share(laps: &mtanet_report::report::Laps) -> Option<f64> {
+    let after_first = laps.completed.checked_sub(1).filter(|&n| n > 0)?;
+    Some((laps.completed_under_active_inference as f64 / after_first as f64).min(1.0))
 }
 
 /// (step, active inference drove) per trace row.

@@ -58,6 +58,8 @@ pub struct Run<'a> {
     pub config: &'a Path,
     /// Evaluation: drive from this checkpoint with no learning.
     pub checkpoint: Option<&'a Path>,
+    /// The reactive rule alone (`mta up --rule`).
+    pub rule: bool,
     /// The run's own iceoryx2 namespace.
     pub namespace: String,
 }
@@ -91,6 +93,9 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
         .arg(ns);
     if let Some(ck) = run.checkpoint {
         cmd.arg("--checkpoint").arg(ck).arg("--no-learning");
+    }
+    if run.rule {
+        cmd.arg("--rule");
     }
     cmd.stdout(file.try_clone()?).stderr(file).process_group(0);
     let mut child = cmd.spawn().context("starting mta up")?;

@@ -207,6 +207,14 @@ impl Spec {
         }
         let mut slugs = BTreeSet::new();
         for t in &self.eval_tracks {
+            if track_slug(t) == track_slug(&self.learn_track) {
+                let m = format!(
+                    "has {} (or a track of its name), the learn track: evaluation is on tracks \
+                     the learning never saw",
+                    t.display()
+                );
+                return Err(bad("eval_tracks", m));
+            }
             if !slugs.insert(track_slug(t)) {
                 let m = format!(
                     "has two tracks named {:?} (the run folder names)",
@@ -246,12 +254,16 @@ fn folder_safe(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
 }
 
-/// The run folder name of a track: `generated:101` -> `generated-101`, `a/bends.csv` -> `bends`.
+/// The run folder name of a track: `generated:101` -> `generated-101`, `hairpins:2:6` ->
+/// `hairpins-2-6`, `a/bends.csv` -> `bends`.
 pub fn track_slug(track: &Path) -> String {
     let s = track.to_string_lossy();
-    match s.strip_prefix(mtanet_track::GENERATED_PREFIX) {
-        Some(n) => format!("generated-{n}"),
-        None => track
+    let generated = [mtanet_track::GENERATED_PREFIX, mtanet_track::HAIRPINS_PREFIX]
+        .iter()
+        .any(|p| s.starts_with(p));
+    match generated {
+        true => s.replace(':', "-"),
+        false => track
             .file_stem()
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_else(|| "track".into()),

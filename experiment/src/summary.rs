@@ -137,6 +137,7 @@ pub fn summary_md(path: &Path, x: &Inputs) -> anyhow::Result<()> {
     for phase in Phase::ALL {
         spreads(&mut md, x, phase);
     }
+    crate::versus::markdown(&mut md, x.records, &x.spec.variants);
     differences(&mut md, x);
     md.push_str("\n## Metrics\n\n| metric | meaning |\n|---|---|\n");
     for (name, meaning) in NAMES {
@@ -153,6 +154,9 @@ fn spreads(md: &mut String, x: &Inputs, phase: Phase) {
         Phase::Learn => "Median [first quartile, third quartile] over seeds (n: seeds with a value).\n\n",
         Phase::Eval => "Each seed's value is its mean over the evaluation tracks that have one; then \
                         median [first quartile, third quartile] over seeds (n: seeds with a value).\n\n",
+        Phase::Rule => "The reactive rule alone (no model, no exploration) on each evaluation track \
+                        for the same time: each seed's value is its mean over the tracks; then \
+                        median [first quartile, third quartile] over seeds.\n\n",
     });
     let _ = writeln!(md, "| metric | {} |", names(variants).join(" | "));
     let _ = writeln!(md, "|---|{}", "---|".repeat(variants.len()));
@@ -194,7 +198,7 @@ fn differences(md: &mut String, x: &Inputs) {
     for (i, a) in variants.iter().enumerate() {
         for v in &variants[i + 1..] {
             let _ = writeln!(md, "\n### `{}` - `{}`\n", v.name, a.name);
-            md.push_str("| metric | learn | eval |\n|---|---|---|\n");
+            md.push_str("| metric | learn | eval | rule |\n|---|---|---|---|\n");
             for (m, (name, _)) in NAMES.iter().enumerate() {
                 let cols: Vec<String> = Phase::ALL
                     .iter()

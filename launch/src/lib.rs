@@ -3,6 +3,7 @@
 //! here, with a live progress line and the run's report) and `mta systemd` (the same plan as
 //! systemd units).
 
+pub mod baseline;
 pub mod notify;
 pub mod plan;
 pub mod runcfg;

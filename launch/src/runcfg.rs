@@ -9,9 +9,11 @@ use mtanet_ipc::stack::StackConfig;
 
 /// The config the processes get: the user's, with the run folder's checkpoint directory and
 /// learning log (unless it names its own) and the mode; checked section by section before anything starts.
+/// `rule_alone`: exploration and active inference off, the baseline a learnt driver is judged by.
 pub fn effective_config(
     config: Option<&Path>,
     mode: Option<&str>,
+    rule_alone: bool,
     out: &Path,
 ) -> anyhow::Result<(PathBuf, PathBuf)> {
     let source = config
@@ -53,10 +55,40 @@ pub fn effective_config(
         sim.insert("mode".into(), m.into());
     }
     table.insert("simulator".into(), sim.into());
+    if rule_alone {
+        rule_only(&mut table)?;
+    }
     let path = out.join("stack.toml");
     mtanet_files::write_bytes(&path, toml::to_string(&table)?.as_bytes())?;
     check(&ConfigFile::load(Some(&path))?)?;
     Ok((path, ck_dir))
+}
+
+/// Turns off whatever would drive instead of the rule or disturb it: exploration, active
+/// inference, the teacher's noise.
+fn rule_only(table: &mut toml::Table) -> anyhow::Result<()> {
+    for (path, key) in [
+        (&["predictor", "exploration"][..], "enabled"),
+        (&["predictor", "active_inference"], "enabled"),
+    ] {
+        sub_table(table, path)?.insert(key.into(), false.into());
+    }
+    sub_table(table, &["simulator", "teacher"])?.insert("noise_std".into(), 0.0.into());
+    Ok(())
+}
+
+/// The table at `path`, made where missing; an error where a key on the way is not a table.
+fn sub_table<'t>(table: &'t mut toml::Table, path: &[&str]) -> anyhow::Result<&'t mut toml::Table> {
+    let mut t = table;
+    for (i, name) in path.iter().enumerate() {
+        let v = t
+            .entry(name.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        t = v.as_table_mut().with_context(|| {
+            format!("[{}] in the config must be a table", path[..=i].join("."))
+        })?;
+    }
+    Ok(t)
 }
 
 /// Every section, as the services will read it: a typo fails here, naming file and key.
@@ -80,9 +112,11 @@ pub fn check(file: &ConfigFile) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Checks the starting checkpoint and probes it on this run's track (the predictor trusts
-/// weights for control only with a passing probe, and a model learnt elsewhere has none here):
-/// writes `start.safetensors` in the run folder with the probe recorded, and returns its path.
+/// Checks the starting checkpoint and writes `start.safetensors` in the run folder with a
+/// probe recorded (the predictor trusts weights for control only with a passing probe). A
+/// checkpoint that carries the probe of its own training keeps it: the probe measures the model,
+/// and re-measured on a track with few bends it would say more about the track (on a straight,
+/// every command ranks alike). A checkpoint without one is probed on this run's track.
 pub fn probed_copy(
     ck: &Path,
     file: &ConfigFile,
@@ -94,6 +128,16 @@ pub fn probed_copy(
         std::fs::read(ck).with_context(|| format!("reading the checkpoint {}", ck.display()))?;
     let mut loaded = checkpoint::from_bytes(&bytes)
         .with_context(|| format!("the checkpoint {}", ck.display()))?;
+    if let (Some(p), Some(at)) = (loaded.meta.probe, loaded.meta.probe_step) {
+        eprintln!(
+            "[up] checkpoint {} (step {}): its training's counterfactual probe = {p:.3} (at step {at})",
+            ck.display(),
+            loaded.meta.step,
+        );
+        let path = out.join("start.safetensors");
+        std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+        return Ok(path);
+    }
     let agent: mtanet_control::AgentConfig = file.section("predictor.active_inference")?;
     let trainer: mtanet_trainer::config::TrainerConfig = file.section("trainer")?;
     let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());

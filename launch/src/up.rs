@@ -45,6 +45,10 @@ pub struct UpArgs {
     /// No trainer: the predictor drives with --checkpoint as it is.
     #[arg(long, requires = "checkpoint")]
     no_learning: bool,
+    /// The reactive rule alone: no trainer, no model, no exploration, no active inference (the
+    /// baseline a learnt driver is compared with).
+    #[arg(long, conflicts_with_all = ["checkpoint", "no_learning", "record"])]
+    rule: bool,
     /// Record the run's topics into `recording.mcap` in the run folder (`mta record`; replay it
     /// with `mta replay`).
     #[arg(long)]
@@ -77,7 +81,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     let out = args.out.clone().unwrap_or_else(default_out);
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mode = args.lockstep.then_some("lockstep");
-    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), mode, &out)?;
+    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), mode, args.rule, &out)?;
     let file = ConfigFile::load(Some(&config))?;
     let mut ipc: IpcConfig = file.section("ipc")?;
     if let Some(ns) = &args.namespace {
@@ -104,7 +108,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     let info = RunInfo {
         track: track.clone(),
         lockstep: args.lockstep,
-        learning: !args.no_learning,
+        learning: !(args.no_learning || args.rule),
         checkpoint: args.checkpoint.clone(),
         config: args.config.clone(),
     };
@@ -129,7 +133,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         trace: Some(out.join("trace.csv")),
         max_steps: (args.sim_seconds > 0.0)
             .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
-        no_trainer: args.no_learning,
+        no_trainer: args.no_learning || args.rule,
         record: args.record.then(|| crate::plan::Recording {
             out: out.join("recording.mcap"),
             summary: out.join("recording.json"),
@@ -176,6 +180,10 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     } else if let Some(ck) = &args.checkpoint {
         std::fs::copy(ck, out.join("model.safetensors"))?;
     }
+    eprintln!("[up] the reactive rule alone on the same track for the same time (the baseline)");
+    if let Err(e) = crate::baseline::write_rule_alone(&file, &track, &out) {
+        eprintln!("[up] no rule-alone baseline: {e:#}");
+    }
     let r = mtanet_report::write(&out, &mtanet_eval::figure::strip_on_track)?;
     eprintln!(
         "[up] {} steps ({:.0} s simulated) in {:.0} s; laps {} (active inference {}); control {}; report {}",
@@ -187,6 +195,18 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         r.control,
         out.join("report.json").display()
     );
+    if let Some(b) = &r.rule_alone {
+        let mm = |v: Option<f64>| v.map_or("-".into(), |m| format!("{:.2} mm", m * 1e3));
+        let s = |v: Option<f64>| v.map_or("-".into(), |t| format!("{t:.2} s"));
+        eprintln!(
+            "[up] lateral error: active inference {}, the rule alone {}; lap time: active \
+             inference {}, the rule alone {}",
+            mm(r.lateral_error_m.active_inference_mean),
+            mm(b.lateral_mean_m),
+            s(r.laps.lap_time_active_inference_s),
+            s(b.lap_time_s)
+        );
+    }
     outcome?;
     if !failed.is_empty() {
         bail!("{}", failed.join("; "));

@@ -40,7 +40,7 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         Self {
-            lr: 1e-3,
+            lr: 4e-3,
             clip_norm: 1.0,
             batch_size: 16,
             bptt: 20,

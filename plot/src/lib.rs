@@ -11,6 +11,7 @@ pub mod grid;
 pub mod latency;
 mod legend;
 pub mod lines;
+pub mod pairs;
 pub mod ticks;
 pub mod trace;
 
@@ -24,6 +25,7 @@ pub use dots::variants_dot_plot;
 pub use grid::{Cell, image_grid};
 pub use latency::latency_histograms;
 pub use lines::{Panel, Series, category_chart, lines_chart};
+pub use pairs::{Pair, pairs_chart};
 pub use trace::{Path2d, lap_trace};
 
 pub type Rgb = [u8; 3];

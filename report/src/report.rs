@@ -52,6 +52,11 @@ pub struct Report {
     pub planning: Option<PlanningSummary>,
     pub laps: Laps,
     pub lateral_error_m: LateralByDriver,
+    /// The reactive rule driving alone on the same track for the same simulated time (no
+    /// model, no exploration), the baseline this run's driving is judged by; absent where
+    /// `mta up` did not drive it (`rule_alone.json`).
+    #[serde(default)]
+    pub rule_alone: Option<RuleAlone>,
     pub prediction: Prediction,
     pub probe: Probe,
     pub latency: BTreeMap<String, LatencySummary>,
@@ -73,12 +78,33 @@ pub struct Laps {
     /// Times the car lost the line (or drove the wrong way) and was put back at the start.
     pub lost_line_events: u64,
     pub wrong_way_events: u64,
+    /// Median simulated seconds of a whole lap, over all laps and over those active inference
+    /// drove from start to end.
+    #[serde(default)]
+    pub lap_time_s: Option<f64>,
+    #[serde(default)]
+    pub lap_time_active_inference_s: Option<f64>,
 }
+
+/// `rule_alone.json`: the reactive rule alone, in-process, on the run's track for its time.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct RuleAlone {
+    pub sim_seconds: f64,
+    pub laps: u32,
+    pub lost_line_events: u32,
+    pub lateral_mean_m: Option<f64>,
+    pub lap_time_s: Option<f64>,
+}
+
+/// The file `mta up` writes the rule's baseline to, beside the run's summaries.
+pub const RULE_ALONE_FILE: &str = "rule_alone.json";
 
 /// Mean |lateral error| in metres over the steps each driver drove (None: it never drove).
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct LateralByDriver {
-    /// The reactive rule's own steps; its exploration segments and the fallback apart.
+    /// The reactive rule's own steps in this run, its exploration segments and the fallback
+    /// apart: while learning, mostly the rule recovering from exploration, so not the baseline
+    /// (that is `rule_alone`).
     pub reactive_mean: Option<f64>,
     pub active_inference_mean: Option<f64>,
     pub exploration_mean: Option<f64>,
@@ -177,7 +203,10 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
             completed_under_active_inference: c.laps_completed_under_active_inference,
             lost_line_events: sim.resets - sim.wrong_way_resets,
             wrong_way_events: sim.wrong_way_resets,
+            lap_time_s: c.lap_time_s,
+            lap_time_active_inference_s: c.lap_time_active_inference_s,
         },
+        rule_alone: read_json(&dir.join(RULE_ALONE_FILE))?,
         lateral_error_m: LateralByDriver {
             reactive_mean: lat("reactive"),
             active_inference_mean: lat("active_inference"),

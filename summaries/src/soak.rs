@@ -56,6 +56,9 @@ pub struct Control {
     pub switches: u64,
     /// Times the fallback took over (the line lost under active inference).
     pub fallbacks: u64,
+    /// The longest stretch the fallback drove without a break, seconds.
+    #[serde(default)]
+    pub longest_fallback_s: f64,
     /// Plans taken up, and those not ready when their segment began (the predictor's).
     pub plans: u64,
     pub late_plans: u64,
@@ -75,6 +78,7 @@ impl Control {
             exploration_fraction: sim.exploration_fraction,
             switches: sim.switches,
             fallbacks: sim.fallbacks,
+            longest_fallback_s: sim.longest_fallback_s,
             plans: predictor.map_or(0, |p| p.plans),
             late_plans: predictor.map_or(0, |p| p.late_plans),
             first_takeover_s: predictor

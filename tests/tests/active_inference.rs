@@ -49,6 +49,10 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
     assert!(report.control.active_inference_steps > 1500, "{report:#?}");
     assert_eq!(report.control.fallbacks, 0, "{report:#?}");
     assert_eq!(report.laps.lost_line_events, 0, "{report:#?}");
+    // The clean baseline beside it: the rule alone on the oval for the same 60 s.
+    let rule = report.rule_alone.as_ref().expect("report.json has rule_alone");
+    assert!((rule.sim_seconds - 60.0).abs() < 1e-6, "{rule:?}");
+    assert!(rule.laps >= 2 && rule.lost_line_events == 0, "{rule:?}");
     // Planning kept up: every plan was taken up at its segment.
     assert_eq!(report.control.late_plans, 0, "{report:#?}");
     for f in [
@@ -65,5 +69,42 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
         c.alive.is_empty() && c.dead.is_empty(),
         "nodes left behind: {c:?}"
     );
+    remove_namespace_files(&ns);
+}
+
+/// `mta up --rule`: the reactive rule alone through the real processes (no trainer, no model,
+/// no exploration); its lateral error agrees with the in-process baseline every report carries.
+#[test]
+fn the_rule_alone_drives_every_step_and_agrees_with_the_in_process_baseline() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let ns = unique_namespace("rule");
+    let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
+    let status = Command::new(bin("mta"))
+        .args(["up", "--lockstep", "--rule", "--sim-seconds", "30"])
+        .args(["--track", "generated:101", "--namespace", &ns])
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(&out)
+        .stderr(std::fs::File::create(dir.path().join("up.log")).unwrap())
+        .status()
+        .unwrap();
+    let log = std::fs::read_to_string(dir.path().join("up.log")).unwrap_or_default();
+    assert!(status.success(), "mta up --rule failed: {status}\n{log}");
+    let report: Report = read_json(&out.join("report.json"));
+    let c = &report.control;
+    assert_eq!(c.reactive_steps, 1500, "{report:#?}");
+    assert_eq!(c.active_inference_steps + c.exploration_steps, 0, "{report:#?}");
+    assert!(report.trainer.updates.is_none(), "a trainer ran: {report:#?}");
+    assert!(!out.join("model.safetensors").exists());
+    let stack = report.lateral_error_m.all_mean;
+    let rule = report.rule_alone.as_ref().expect("rule_alone");
+    let alone = rule.lateral_mean_m.expect("a lateral error");
+    assert!(
+        (stack - alone).abs() <= 0.05 * alone,
+        "the stack's rule {stack} m against the in-process rule {alone} m"
+    );
+    assert!(report.laps.completed >= 1 && report.laps.lap_time_s.is_some(), "{report:#?}");
     remove_namespace_files(&ns);
 }

@@ -68,7 +68,7 @@ fn table(out: &Path) -> (Vec<String>, Vec<Vec<String>>) {
 }
 
 /// The figures a row must repeat, read straight from its run folder's report.
-fn from_report(r: &Report) -> [(&'static str, Option<f64>); 4] {
+fn from_report(r: &Report) -> [(&'static str, Option<f64>); 6] {
     [
         ("laps", Some(r.laps.completed as f64)),
         (
@@ -77,6 +77,8 @@ fn from_report(r: &Report) -> [(&'static str, Option<f64>); 4] {
         ),
         ("fallbacks", Some(r.control.fallbacks as f64)),
         ("trainer_updates", r.trainer.updates.map(|u| u as f64)),
+        ("lateral_all_m", Some(r.lateral_error_m.all_mean)),
+        ("lap_time_s", r.laps.lap_time_s),
     ]
 }
 
@@ -97,8 +99,10 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         [
             "flat,0,eval,generated:101",
             "flat,0,learn,scenes/tracks/oval.csv",
+            "flat,0,rule,generated:101",
             "paper,0,eval,generated:101",
             "paper,0,learn,scenes/tracks/oval.csv",
+            "paper,0,rule,generated:101",
         ],
         "one row per run"
     );
@@ -112,7 +116,7 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         let (variant, phase) = (&r[0], &r[2]);
         let folder = match phase.as_str() {
             "learn" => "learn".to_string(),
-            _ => "eval-generated-101".to_string(),
+            p => format!("{p}-generated-101"),
         };
         let run = out.join(variant).join("0").join(folder);
         let report: Report = mtanet_files::read_json(&run.join("report.json")).unwrap();
@@ -155,6 +159,11 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
             let ratio = value(r, "heldout_over_copy_last").expect("a held-out ratio");
             assert!(updates >= 20.0 && ratio.is_finite() && ratio > 0.0, "{r:?}");
         }
+        if phase == "rule" {
+            // The rule alone: no active inference, no trainer.
+            assert_eq!(value(r, "laps_active_inference"), Some(0.0), "{r:?}");
+            assert_eq!(value(r, "trainer_updates"), None, "{r:?}");
+        }
     }
     // One seed: the summary's median of a variant is its one value.
     let learn_updates: Vec<String> = ["flat", "paper"]
@@ -175,6 +184,9 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         "# Experiment `smoke`",
         "## learn",
         "## eval",
+        "## rule",
+        "## The learnt driver against the rule alone, per evaluation track",
+        "| `generated:101` |",
         "## Differences of medians",
         "### `flat` - `paper`",
         "## Metrics",
@@ -190,7 +202,8 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         md.contains(&format!("- made with: commit `{commit}` on ")) && md.contains("(2 cells)"),
         "{md}"
     );
-    for (name, _) in NAMES {
+    let names = NAMES.iter().map(|n| n.0).chain(["lap_time_vs_lateral"]);
+    for name in names {
         let png = out.join("plots").join(format!("{name}.png"));
         let bytes = std::fs::read(&png).unwrap_or_default();
         assert!(bytes.starts_with(b"\x89PNG"), "{} missing", png.display());

@@ -2,7 +2,7 @@ use std::cell::Cell;
 use std::time::Duration;
 
 use super::*;
-use crate::cost::CostConfig;
+use crate::cost::tests::every_mode;
 use crate::preference::tests::{learnt, line_frame};
 
 /// A toy world: the line's column moves by the turn each segment (a positive turn, to the left,
@@ -77,8 +77,9 @@ impl Imagination for Toy {
     }
 }
 
+/// Every mode weighed (see `cost::tests::every_mode`): these tests steer by the offset.
 fn cost() -> Cost {
-    Cost::new(learnt(), CostConfig::default())
+    Cost::new(learnt(), every_mode())
 }
 
 #[test]

@@ -88,7 +88,7 @@ impl Default for SimulatorConfig {
             reset_after_lost_s: 3.0,
             lost_lateral_m: 0.1,
             reverse_reset_m: 0.15,
-            pace_updates_per_1000_steps: 40.0,
+            pace_updates_per_1000_steps: 160.0,
             trace_every_steps: 5,
             scene: SceneConfig::default(),
             teacher: TeacherConfig::default(),

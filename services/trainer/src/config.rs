@@ -54,10 +54,10 @@ impl Default for TrainerConfig {
     fn default() -> Self {
         Self {
             replay_capacity: 4096,
-            min_sequences: 64,
+            min_sequences: 16,
             sequence_steps: 12,
             mirror: true,
-            probe_every_updates: 250,
+            probe_every_updates: 50,
             publish_every_updates: 50,
             checkpoint_dir: None,
             learning_log: None,
