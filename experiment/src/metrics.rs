@@ -105,7 +105,7 @@ pub const NAMES: [(&str, &str); 31] = [
     ),
     (
         "probe",
-        "counterfactual probe (rank correlation): the trainer's last (learn), on the eval track (eval)",
+        "counterfactual probe (rank correlation): the trainer's last (learn), the checkpoint's (eval)",
     ),
     ("trainer_updates", "trainer updates in the run (learn rows)"),
     (

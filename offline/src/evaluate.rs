@@ -138,11 +138,18 @@ pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
         Some(ck) => {
             let bytes = std::fs::read(ck).with_context(|| format!("reading {}", ck.display()))?;
             let mut live = LiveModel::from_bytes(&bytes, 1)?;
-            // Trusted for control only with a passing probe, measured here on this track.
-            let probe_cfg: ProbeConfig = file.section("trainer.probe")?;
-            live.probe =
-                Some(mtanet_eval::probe(&scene, &bytes, &agent_cfg, &probe_cfg)?.rank_correlation);
-            tracing::info!(probe = ?live.probe, "probed the checkpoint on this track");
+            // Trusted for control only with a passing probe: the one its training recorded, as
+            // `mta up` takes it, else measured here on this track.
+            let meta = mtanet_models::checkpoint::from_bytes(&bytes)?.meta;
+            live.probe = match (meta.probe, meta.probe_step) {
+                (Some(p), Some(_)) => Some(p),
+                _ => {
+                    let probe_cfg: ProbeConfig = file.section("trainer.probe")?;
+                    let r = mtanet_eval::probe(&scene, &bytes, &agent_cfg, &probe_cfg)?;
+                    Some(r.rank_correlation)
+                }
+            };
+            tracing::info!(probe = ?live.probe, step = ?meta.probe_step, "the checkpoint's probe");
             let mut plans = Inline::new(planner, Imagined::from_bytes(&bytes)?);
             drive(&mut world, &mut agent, &mut Learned(live), &mut plans, &run)?
         }

@@ -1,9 +1,10 @@
 //! Active inference drives the car through the learned model, with the real processes: `mta up`
 //! starts the predictor and the simulator (no trainer) from the committed checkpoint made by a
 //! from-scratch lockstep run on the oval (tests/data/README.md), in lockstep for 60 simulated
-//! seconds, and the run's report must show a lap driven by active inference from start to end.
+//! seconds, and the run's report must show a lap driven by active inference from start to end,
+//! beside the rule-alone baseline; and `mta up --rule`, the rule alone through the processes.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use mtanet_report::report::Report;
@@ -13,34 +14,32 @@ fn checkpoint() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors")
 }
 
+/// `mta up --lockstep` with the shipped config and `args` into `dir/run`; its report.
+fn up_lockstep(dir: &Path, ns: &str, args: &[&str]) -> Report {
+    let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
+    let status = Command::new(bin("mta"))
+        .args(["up", "--lockstep", "--namespace", ns])
+        .args(args)
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(dir.join("run"))
+        .stderr(std::fs::File::create(dir.join("up.log")).unwrap())
+        .status()
+        .unwrap();
+    let log = std::fs::read_to_string(dir.join("up.log")).unwrap_or_default();
+    assert!(status.success(), "mta up {args:?} failed: {status}\n{log}");
+    read_json(&dir.join("run/report.json"))
+}
+
 #[test]
 fn active_inference_drives_a_lap_through_the_learned_model() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let ns = unique_namespace("ai");
-    let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
-    let status = Command::new(bin("mta"))
-        .args([
-            "up",
-            "--lockstep",
-            "--sim-seconds",
-            "60",
-            "--no-learning",
-            "--namespace",
-            &ns,
-        ])
-        .arg("--config")
-        .arg(&config)
-        .arg("--checkpoint")
-        .arg(checkpoint())
-        .arg("--out")
-        .arg(&out)
-        .stderr(std::fs::File::create(dir.path().join("up.log")).unwrap())
-        .status()
-        .unwrap();
-    let log = std::fs::read_to_string(dir.path().join("up.log")).unwrap_or_default();
-    assert!(status.success(), "mta up failed: {status}\n{log}");
-    let report: Report = read_json(&out.join("report.json"));
+    let ck = checkpoint();
+    let args = ["--sim-seconds", "60", "--no-learning", "--checkpoint", ck.to_str().unwrap()];
+    let report = up_lockstep(dir.path(), &ns, &args);
     assert_eq!(report.steps, 3000, "{report:#?}");
     assert!(
         report.laps.completed_under_active_inference >= 1,
@@ -79,20 +78,8 @@ fn the_rule_alone_drives_every_step_and_agrees_with_the_in_process_baseline() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let ns = unique_namespace("rule");
-    let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
-    let status = Command::new(bin("mta"))
-        .args(["up", "--lockstep", "--rule", "--sim-seconds", "30"])
-        .args(["--track", "generated:101", "--namespace", &ns])
-        .arg("--config")
-        .arg(&config)
-        .arg("--out")
-        .arg(&out)
-        .stderr(std::fs::File::create(dir.path().join("up.log")).unwrap())
-        .status()
-        .unwrap();
-    let log = std::fs::read_to_string(dir.path().join("up.log")).unwrap_or_default();
-    assert!(status.success(), "mta up --rule failed: {status}\n{log}");
-    let report: Report = read_json(&out.join("report.json"));
+    let args = ["--rule", "--sim-seconds", "30", "--track", "generated:101"];
+    let report = up_lockstep(dir.path(), &ns, &args);
     let c = &report.control;
     assert_eq!(c.reactive_steps, 1500, "{report:#?}");
     assert_eq!(c.active_inference_steps + c.exploration_steps, 0, "{report:#?}");
