@@ -219,7 +219,7 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
 
     // Resume: every cell is finished, so nothing runs and nothing in a run folder changes.
     let before = finished_files(&out);
-    assert_eq!(before.len(), 2 + 4, "2 cell.json, 4 report.json");
+    assert_eq!(before.len(), 2 + 6, "2 cell.json, 6 report.json");
     let analysed = std::fs::metadata(out.join("paper/0/analysis/analysis.json"))
         .unwrap()
         .modified()
