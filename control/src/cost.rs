@@ -147,7 +147,11 @@ impl Cost {
     }
 
     fn rows_of(cfg: &CostConfig, height: usize) -> usize {
-        if cfg.rows == 0 { height } else { cfg.rows.min(height) }
+        if cfg.rows == 0 {
+            height
+        } else {
+            cfg.rows.min(height)
+        }
     }
 
     /// `d' P d / rows`.

@@ -18,8 +18,8 @@ pub mod drive;
 pub mod planner;
 pub mod preference;
 pub mod reactive;
-pub mod reflex;
 pub mod recovery;
+pub mod reflex;
 pub mod worker;
 
 pub use agent::{

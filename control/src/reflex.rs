@@ -64,14 +64,24 @@ mod tests {
         let r = ReflexConfig::default();
         let fast = Drive::new(10.0, 0.0).wheels();
         let centred = Drive::from_wheels(r.apply(fast, [false, true, false]));
-        assert_eq!((centred.speed, centred.turn), (10.0, 0.0), "preferred reading");
+        assert_eq!(
+            (centred.speed, centred.turn),
+            (10.0, 0.0),
+            "preferred reading"
+        );
         let left = Drive::from_wheels(r.apply(fast, [true, true, false]));
         assert!((left.turn - r.gentle).abs() < 1e-5 && left.speed == 10.0);
         let slipping = Drive::from_wheels(r.apply(fast, [false, false, true]));
         assert!((slipping.turn + r.strong).abs() < 1e-5, "{slipping:?}");
-        assert!((slipping.speed - r.strong_max_speed).abs() < 1e-5, "{slipping:?}");
+        assert!(
+            (slipping.speed - r.strong_max_speed).abs() < 1e-5,
+            "{slipping:?}"
+        );
         let slow = Drive::new(3.0, 0.0).wheels();
         let kept = Drive::from_wheels(r.apply(slow, [true, false, false]));
-        assert!((kept.speed - 3.0).abs() < 1e-5, "a slower plan is not sped up");
+        assert!(
+            (kept.speed - 3.0).abs() < 1e-5,
+            "a slower plan is not sped up"
+        );
     }
 }

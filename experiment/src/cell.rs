@@ -59,7 +59,9 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
                 label: format!("{} {} {}", cell.label(), phase.name(), track.display()),
                 track,
                 sim_seconds: key.eval_sim_seconds,
-                out: cell.dir.join(format!("{}-{}", phase.name(), track_slug(track))),
+                out: cell
+                    .dir
+                    .join(format!("{}-{}", phase.name(), track_slug(track))),
                 config: &config,
                 checkpoint: (!rule).then_some(model.as_path()),
                 rule,

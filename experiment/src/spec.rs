@@ -258,9 +258,12 @@ fn folder_safe(name: &str) -> bool {
 /// `hairpins-2-6`, `a/bends.csv` -> `bends`.
 pub fn track_slug(track: &Path) -> String {
     let s = track.to_string_lossy();
-    let generated = [mtanet_track::GENERATED_PREFIX, mtanet_track::HAIRPINS_PREFIX]
-        .iter()
-        .any(|p| s.starts_with(p));
+    let generated = [
+        mtanet_track::GENERATED_PREFIX,
+        mtanet_track::HAIRPINS_PREFIX,
+    ]
+    .iter()
+    .any(|p| s.starts_with(p));
     match generated {
         true => s.replace(':', "-"),
         false => track

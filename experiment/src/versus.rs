@@ -44,14 +44,24 @@ impl TrackVersus {
 }
 
 fn metric(name: &str) -> usize {
-    NAMES.iter().position(|(n, _)| *n == name).expect("a metric of NAMES")
+    NAMES
+        .iter()
+        .position(|(n, _)| *n == name)
+        .expect("a metric of NAMES")
 }
 
 /// Per evaluation track (in the records' order) of `variant`.
 pub fn tracks(records: &[CellRecord], variant: &str) -> Vec<TrackVersus> {
-    let cells: Vec<&CellRecord> = records.iter().filter(|r| r.key.variant == variant).collect();
+    let cells: Vec<&CellRecord> = records
+        .iter()
+        .filter(|r| r.key.variant == variant)
+        .collect();
     let mut names: Vec<&str> = Vec::new();
-    for row in cells.iter().flat_map(|c| &c.rows).filter(|r| r.phase == Phase::Eval) {
+    for row in cells
+        .iter()
+        .flat_map(|c| &c.rows)
+        .filter(|r| r.phase == Phase::Eval)
+    {
         if !names.contains(&row.track.as_str()) {
             names.push(&row.track);
         }
@@ -127,7 +137,9 @@ pub fn markdown(md: &mut String, records: &[CellRecord], variants: &[crate::spec
                 t.longest_fallback_s
             );
         }
-        let count = |f: fn(&TrackVersus) -> Option<bool>| rows.iter().filter(|t| f(t) == Some(true)).count();
+        let count = |f: fn(&TrackVersus) -> Option<bool>| {
+            rows.iter().filter(|t| f(t) == Some(true)).count()
+        };
         let _ = writeln!(
             md,
             "\nCloser on {} of {} tracks, no slower on {} of {}.",
@@ -140,7 +152,11 @@ pub fn markdown(md: &mut String, records: &[CellRecord], variants: &[crate::spec
 }
 
 /// `lap_time_vs_lateral[_<variant>].png`: per track the rule alone and the learnt driver.
-pub fn plot(dir: &Path, records: &[CellRecord], variants: &[crate::spec::Variant]) -> anyhow::Result<()> {
+pub fn plot(
+    dir: &Path,
+    records: &[CellRecord],
+    variants: &[crate::spec::Variant],
+) -> anyhow::Result<()> {
     for (i, v) in variants.iter().enumerate() {
         let rows = tracks(records, &v.name);
         let pairs: Vec<mtanet_plot::Pair> = rows

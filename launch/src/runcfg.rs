@@ -84,9 +84,9 @@ fn sub_table<'t>(table: &'t mut toml::Table, path: &[&str]) -> anyhow::Result<&'
         let v = t
             .entry(name.to_string())
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        t = v.as_table_mut().with_context(|| {
-            format!("[{}] in the config must be a table", path[..=i].join("."))
-        })?;
+        t = v
+            .as_table_mut()
+            .with_context(|| format!("[{}] in the config must be a table", path[..=i].join(".")))?;
     }
     Ok(t)
 }

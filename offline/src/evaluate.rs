@@ -110,8 +110,7 @@ impl AgentModel for Learned {
 
 pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
     tch::set_num_threads(1);
-    let (file, scene, mut agent_cfg) =
-        scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
+    let (file, scene, mut agent_cfg) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
     agent_cfg.enabled &= !args.rule;
     let reactive: mtanet_control::ReactiveConfig = file.section("predictor.reactive")?;
     // Exploration is for learning: an evaluation drives without it.

@@ -4,8 +4,8 @@
 //! lap, and a lap under active inference, the same way.
 
 pub use mtanet_summaries::CommandSource;
-pub use mtanet_summaries::simulator::{ControlSummary, CurvatureBin, LateralError};
 use mtanet_summaries::simulator::CURVATURE_EDGES;
+pub use mtanet_summaries::simulator::{ControlSummary, CurvatureBin, LateralError};
 
 use crate::GroundTruth;
 
@@ -368,8 +368,14 @@ mod tests {
         assert_eq!(c.longest_fallback_s(), 1.5);
         let bins = c.by_curvature();
         assert_eq!(bins.len(), 5);
-        assert_eq!((bins[0].steps_active_inference, bins[0].steps_other), (4, 1));
-        assert_eq!((bins[1].steps_active_inference, bins[2].steps_other), (2, 0));
+        assert_eq!(
+            (bins[0].steps_active_inference, bins[0].steps_other),
+            (4, 1)
+        );
+        assert_eq!(
+            (bins[1].steps_active_inference, bins[2].steps_other),
+            (2, 0)
+        );
         assert_eq!(bins[3].steps_active_inference, 1, "6 1/m: the 5-7.5 bin");
         assert_eq!((bins[4].steps_other, bins[4].fallbacks), (3, 1));
         assert_eq!(bins[4].lateral_other_m, Some(0.002));

@@ -89,7 +89,8 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     } else {
         "realtime"
     };
-    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), Some(mode), false, &out)?;
+    let (config, ck_dir) =
+        runcfg::effective_config(args.config.as_deref(), Some(mode), false, &out)?;
     let file = ConfigFile::load(Some(&config))?;
     let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
     let track = args.track.clone().unwrap_or(scene.track);

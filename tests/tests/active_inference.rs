@@ -38,7 +38,13 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
     let out = dir.path().join("run");
     let ns = unique_namespace("ai");
     let ck = checkpoint();
-    let args = ["--sim-seconds", "60", "--no-learning", "--checkpoint", ck.to_str().unwrap()];
+    let args = [
+        "--sim-seconds",
+        "60",
+        "--no-learning",
+        "--checkpoint",
+        ck.to_str().unwrap(),
+    ];
     let report = up_lockstep(dir.path(), &ns, &args);
     assert_eq!(report.steps, 3000, "{report:#?}");
     assert!(
@@ -49,7 +55,10 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
     assert_eq!(report.control.fallbacks, 0, "{report:#?}");
     assert_eq!(report.laps.lost_line_events, 0, "{report:#?}");
     // The clean baseline beside it: the rule alone on the oval for the same 60 s.
-    let rule = report.rule_alone.as_ref().expect("report.json has rule_alone");
+    let rule = report
+        .rule_alone
+        .as_ref()
+        .expect("report.json has rule_alone");
     assert!((rule.sim_seconds - 60.0).abs() < 1e-6, "{rule:?}");
     assert!(rule.laps >= 2 && rule.lost_line_events == 0, "{rule:?}");
     // Planning kept up: every plan was taken up at its segment.
@@ -82,8 +91,15 @@ fn the_rule_alone_drives_every_step_and_agrees_with_the_in_process_baseline() {
     let report = up_lockstep(dir.path(), &ns, &args);
     let c = &report.control;
     assert_eq!(c.reactive_steps, 1500, "{report:#?}");
-    assert_eq!(c.active_inference_steps + c.exploration_steps, 0, "{report:#?}");
-    assert!(report.trainer.updates.is_none(), "a trainer ran: {report:#?}");
+    assert_eq!(
+        c.active_inference_steps + c.exploration_steps,
+        0,
+        "{report:#?}"
+    );
+    assert!(
+        report.trainer.updates.is_none(),
+        "a trainer ran: {report:#?}"
+    );
     assert!(!out.join("model.safetensors").exists());
     let stack = report.lateral_error_m.all_mean;
     let rule = report.rule_alone.as_ref().expect("rule_alone");
@@ -92,6 +108,9 @@ fn the_rule_alone_drives_every_step_and_agrees_with_the_in_process_baseline() {
         (stack - alone).abs() <= 0.05 * alone,
         "the stack's rule {stack} m against the in-process rule {alone} m"
     );
-    assert!(report.laps.completed >= 1 && report.laps.lap_time_s.is_some(), "{report:#?}");
+    assert!(
+        report.laps.completed >= 1 && report.laps.lap_time_s.is_some(),
+        "{report:#?}"
+    );
     remove_namespace_files(&ns);
 }

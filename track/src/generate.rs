@@ -126,7 +126,10 @@ pub(crate) fn spec_of(path: &Path) -> Result<Option<(u64, Style)>, TrackError> {
         return Ok(None);
     };
     if let Some(seed) = s.strip_prefix(GENERATED_PREFIX) {
-        return seed.parse().map(|n| Some((n, Style::MIXED))).map_err(|_| bad());
+        return seed
+            .parse()
+            .map(|n| Some((n, Style::MIXED)))
+            .map_err(|_| bad());
     }
     let Some(rest) = s.strip_prefix(HAIRPINS_PREFIX) else {
         return Ok(None);

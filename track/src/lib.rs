@@ -83,9 +83,7 @@ pub enum TrackError {
     GeneratedName { path: PathBuf },
     /// `hairpins:N:K` asks for bends tighter than the checks allow, or no tighter than
     /// `generated:N`'s.
-    #[error(
-        "track {path}: tightest curvature {curvature} 1/m is outside {min:.2}..={max:.2} 1/m"
-    )]
+    #[error("track {path}: tightest curvature {curvature} 1/m is outside {min:.2}..={max:.2} 1/m")]
     HairpinCurvature {
         path: PathBuf,
         curvature: f64,
@@ -139,7 +137,8 @@ impl Track {
     /// every config key and flag that names a track goes through here, so all accept both.
     pub fn load(path: &Path) -> Result<Track, TrackError> {
         if let Some((seed, style)) = generate::spec_of(path)? {
-            return generate::generate_styled(&path.to_string_lossy(), seed, &style).map(|(t, _)| t);
+            return generate::generate_styled(&path.to_string_lossy(), seed, &style)
+                .map(|(t, _)| t);
         }
         let text = std::fs::read_to_string(path).map_err(|source| TrackError::Io {
             path: path.to_path_buf(),

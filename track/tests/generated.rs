@@ -161,7 +161,10 @@ fn hairpin_tracks_bend_as_tightly_as_asked_and_generated_names_keep_their_tracks
                 "{name}: tightest curvature {kmax}, asked for {k}"
             );
             let len = t.length_m();
-            assert!((LENGTH_RANGE_M.0..=LENGTH_RANGE_M.1).contains(&len), "{name}: {len} m");
+            assert!(
+                (LENGTH_RANGE_M.0..=LENGTH_RANGE_M.1).contains(&len),
+                "{name}: {len} m"
+            );
         }
     }
     // The default knob is the square's corners.
@@ -179,7 +182,12 @@ fn hairpin_tracks_bend_as_tightly_as_asked_and_generated_names_keep_their_tracks
         .map(|(i, p)| (i as f64 + 1.0) * (p[0] + 2.0 * p[1]))
         .sum();
     assert_eq!(format!("{sum:.5}"), "-2059.12863");
-    for bad in ["hairpins:x", "hairpins:1:20", "hairpins:1:2", "hairpins:1:k"] {
+    for bad in [
+        "hairpins:x",
+        "hairpins:1:20",
+        "hairpins:1:2",
+        "hairpins:1:k",
+    ] {
         assert!(
             Track::load(Path::new(bad)).is_err(),
             "{bad} must be refused"
