@@ -195,23 +195,27 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         r.control,
         out.join("report.json").display()
     );
-    if let Some(b) = &r.rule_alone {
-        let mm = |v: Option<f64>| v.map_or("-".into(), |m| format!("{:.2} mm", m * 1e3));
-        let s = |v: Option<f64>| v.map_or("-".into(), |t| format!("{t:.2} s"));
-        eprintln!(
-            "[up] lateral error: active inference {}, the rule alone {}; lap time: active \
-             inference {}, the rule alone {}",
-            mm(r.lateral_error_m.active_inference_mean),
-            mm(b.lateral_mean_m),
-            s(r.laps.lap_time_active_inference_s),
-            s(b.lap_time_s)
-        );
-    }
+    print_versus_rule(&r);
     outcome?;
     if !failed.is_empty() {
         bail!("{}", failed.join("; "));
     }
     Ok(())
+}
+
+/// The run's active inference beside the rule alone on the same track for the same time.
+fn print_versus_rule(r: &mtanet_report::Report) {
+    let Some(b) = &r.rule_alone else { return };
+    let mm = |v: Option<f64>| v.map_or("-".into(), |m| format!("{:.2} mm", m * 1e3));
+    let s = |v: Option<f64>| v.map_or("-".into(), |t| format!("{t:.2} s"));
+    eprintln!(
+        "[up] lateral error: active inference {}, the rule alone {}; lap time: active \
+         inference {}, the rule alone {}",
+        mm(r.lateral_error_m.active_inference_mean),
+        mm(b.lateral_mean_m),
+        s(r.laps.lap_time_active_inference_s),
+        s(b.lap_time_s)
+    );
 }
 
 /// The live progress line, restarting failed processes, until a signal, the simulator's end,

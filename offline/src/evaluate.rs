@@ -110,8 +110,7 @@ impl AgentModel for Learned {
 
 pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
     tch::set_num_threads(1);
-    let (file, scene, mut agent_cfg) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
-    agent_cfg.enabled &= !args.rule;
+    let (file, scene, agent_cfg) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
     let reactive: mtanet_control::ReactiveConfig = file.section("predictor.reactive")?;
     // Exploration is for learning: an evaluation drives without it.
     let off = ExplorationConfig {
@@ -134,6 +133,8 @@ pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let report = match &args.checkpoint {
+        // The same baseline every `mta up` report carries.
+        None if args.rule => mtanet_eval::rule_alone(&mut world, &reactive, &run)?,
         Some(ck) => {
             let bytes = std::fs::read(ck).with_context(|| format!("reading {}", ck.display()))?;
             let mut live = LiveModel::from_bytes(&bytes, 1)?;
