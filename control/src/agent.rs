@@ -218,10 +218,18 @@ impl Agent {
         let mut plan = None;
         if model_tick {
             let health = model.health();
-            let bad = health
-                .model_over_copy
-                .is_some_and(|r| r > self.cfg.distrust_ratio);
-            self.distrust_steps = if bad { self.distrust_steps + 1 } else { 0 };
+            // NaN compares false with everything: test for "not good", not for "bad".
+            let ratio = health.model_over_copy;
+            let bad = ratio.is_some_and(|r| !(r <= self.cfg.distrust_ratio));
+            self.distrust_steps = if ratio.is_some_and(|r| !r.is_finite()) {
+                // A model that predicts NaN or inf is not given the usual grace: the rule
+                // drives from this step on.
+                self.cfg.distrust_after_steps.max(1)
+            } else if bad {
+                self.distrust_steps + 1
+            } else {
+                0
+            };
             match self.mode {
                 Mode::ActiveInference if !self.still_trusted() => {
                     tracing::warn!(

@@ -74,7 +74,9 @@ pub struct PlannerConfig {
     pub elites: usize,
     /// CEM iterations after the warm start's batch; with a deadline, at most.
     pub iterations: usize,
-    /// Forward speed bounds, rad/s.
+    /// Forward speed bounds, rad/s. The top is the rule's cruise plus one: faster, active
+    /// inference drifts off the line in bends sharper than it learnt on; at 9 it keeps about
+    /// the rule's error and still laps no slower (docs/experiments.md, "generalise").
     pub min_speed: f32,
     pub max_speed: f32,
     /// Turn bound (|turn|), rad/s.
@@ -94,7 +96,7 @@ impl Default for PlannerConfig {
             elites: 6,
             iterations: 3,
             min_speed: 2.0,
-            max_speed: 12.0,
+            max_speed: 9.0,
             max_turn: 8.0,
             speed_std: 3.0,
             turn_std: 2.0,

@@ -80,13 +80,24 @@ impl ConfigFile {
 
     /// Section `name` (dotted for nested tables, e.g. "simulator.teacher"), defaults where absent.
     pub fn section<T: DeserializeOwned + Default>(&self, name: &str) -> Result<T, ConfigError> {
-        let mut value = Some(&self.table);
+        let mut table = &self.table;
         for part in name.split('.') {
-            value = value.and_then(|t| t.get(part)).and_then(|v| v.as_table());
+            match table.get(part) {
+                None => return Ok(T::default()),
+                Some(toml::Value::Table(t)) => table = t,
+                // `trainer = 5` is a mistake to report, not a section to default silently.
+                Some(other) => {
+                    return Err(ConfigError::Section {
+                        path: self.origin(),
+                        section: name.into(),
+                        message: format!(
+                            "`{part}` must be a table ([{part}]), not a value of type {}",
+                            other.type_str()
+                        ),
+                    });
+                }
+            }
         }
-        let Some(table) = value else {
-            return Ok(T::default());
-        };
         T::deserialize(toml::Value::Table(table.clone())).map_err(|e| ConfigError::Section {
             path: self.origin(),
             section: name.into(),
@@ -145,6 +156,22 @@ mod tests {
             msg.contains("s.toml") && msg.contains("[ipc]") && msg.contains("string"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn a_section_that_is_not_a_table_is_an_error_not_its_defaults() {
+        let f = ConfigFile::parse("ipc = 5\n", Path::new("mine.toml")).unwrap();
+        let msg = f.section::<IpcConfig>("ipc").unwrap_err().to_string();
+        assert!(
+            msg.contains("mine.toml") && msg.contains("[ipc]") && msg.contains("must be a table"),
+            "{msg}"
+        );
+        let f = ConfigFile::parse("[simulator]\nscene = \"x\"\n", Path::new("m.toml")).unwrap();
+        let msg = f
+            .section::<IpcConfig>("simulator.scene")
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("`scene` must be a table"), "{msg}");
     }
 
     #[test]

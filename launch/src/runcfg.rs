@@ -19,6 +19,11 @@ pub fn effective_config(
     let source = config
         .map(Path::to_path_buf)
         .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
+    // The user's file is checked as written, so that its errors name it (not the run folder's
+    // copy), and before the run folder is made: a config that fails leaves nothing behind.
+    if let Some(p) = &source {
+        check(&ConfigFile::load(Some(p))?)?;
+    }
     let mut table: toml::Table = match &source {
         Some(p) => mtanet_files::read_table(p)?,
         None => toml::Table::new(),
@@ -30,6 +35,7 @@ pub fn effective_config(
             Some(_) => bail!("[{name}] in the config must be a table"),
         }
     };
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut trainer = section(&mut table, "trainer")?;
     let ck_dir = match trainer.get("checkpoint_dir").and_then(|v| v.as_str()) {
         Some(d) => PathBuf::from(d),

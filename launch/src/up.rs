@@ -64,7 +64,9 @@ pub struct UpArgs {
 
 use crate::plan::RECORDER;
 
-fn default_out() -> PathBuf {
+/// A run folder of its own under `runs/`, named by the local time; a second run started in the
+/// same second gets `-2`, `-3`, ... (made here, atomically, so two runs never share one).
+fn reserve_out() -> anyhow::Result<PathBuf> {
     let now = std::process::Command::new("date")
         .arg("+%Y%m%d-%H%M%S")
         .output();
@@ -73,15 +75,35 @@ fn default_out() -> PathBuf {
         .and_then(|o| String::from_utf8(o.stdout).ok())
         .map(|s| s.trim().to_string())
         .unwrap_or_else(|| "run".into());
-    PathBuf::from("runs").join(stamp)
+    let runs = PathBuf::from("runs");
+    std::fs::create_dir_all(&runs).context("creating runs/")?;
+    for n in 1.. {
+        let out = match n {
+            1 => runs.join(&stamp),
+            n => runs.join(format!("{stamp}-{n}")),
+        };
+        match std::fs::create_dir(&out) {
+            Ok(()) => return Ok(out),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e).with_context(|| format!("creating {}", out.display())),
+        }
+    }
+    unreachable!("an unbounded range ends only by returning")
 }
 
 pub fn run(args: UpArgs) -> anyhow::Result<()> {
     let shutdown = Shutdown::install().context("installing signal handlers")?;
-    let out = args.out.clone().unwrap_or_else(default_out);
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let (out, reserved) = match &args.out {
+        Some(o) => (o.clone(), false),
+        None => (reserve_out()?, true),
+    };
     let mode = args.lockstep.then_some("lockstep");
-    let (config, ck_dir) = runcfg::effective_config(args.config.as_deref(), mode, args.rule, &out)?;
+    let checked = runcfg::effective_config(args.config.as_deref(), mode, args.rule, &out);
+    if checked.is_err() && reserved {
+        // Still empty: a config that fails its check leaves no run folder behind.
+        let _ = std::fs::remove_dir(&out);
+    }
+    let (config, ck_dir) = checked?;
     let file = ConfigFile::load(Some(&config))?;
     let mut ipc: IpcConfig = file.section("ipc")?;
     if let Some(ns) = &args.namespace {

@@ -97,6 +97,15 @@ pub enum CheckpointError {
     /// A variable has a kind safetensors cannot store or we do not load.
     #[error("variable `{name}` has unsupported kind {kind}")]
     Kind { name: String, kind: String },
+    /// A tensor holds NaN or infinity: such weights would plan with NaN and must never drive.
+    #[error("tensor `{name}` holds {count} non-finite values (NaN or inf): refused")]
+    NonFinite { name: String, count: i64 },
+    /// Any of the above, in a file it names.
+    #[error("{}: {source}", path.display())]
+    InFile {
+        path: PathBuf,
+        source: Box<CheckpointError>,
+    },
 }
 
 /// A decoded checkpoint: configuration, metadata and named CPU tensors.
@@ -263,6 +272,10 @@ pub(crate) fn decode(format: &str, bytes: &[u8]) -> Result<Checkpoint, Checkpoin
                 name: name.clone(),
                 kind: e.to_string(),
             })?;
+        let count = t.isfinite().logical_not().sum(Kind::Int64).int64_value(&[]);
+        if count > 0 {
+            return Err(CheckpointError::NonFinite { name, count });
+        }
         tensors.insert(name, t);
     }
     if found == 1 {
@@ -289,12 +302,22 @@ fn field<T: serde::de::DeserializeOwned>(
 
 /// Reads and verifies a checkpoint file.
 pub fn load(path: impl AsRef<Path>) -> Result<Checkpoint, CheckpointError> {
+    read(path).map(|(_, ck)| ck)
+}
+
+/// Reads and verifies a checkpoint file; its bytes too, for what takes bytes (an imagination,
+/// the probe). Every error names the file.
+pub fn read(path: impl AsRef<Path>) -> Result<(Vec<u8>, Checkpoint), CheckpointError> {
     let path = path.as_ref();
     let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io {
         path: path.to_owned(),
         source,
     })?;
-    from_bytes(&bytes)
+    let ck = from_bytes(&bytes).map_err(|e| CheckpointError::InFile {
+        path: path.to_owned(),
+        source: Box::new(e),
+    })?;
+    Ok((bytes, ck))
 }
 
 /// Loads a checkpoint file into `vs`, whose model must have been built with `expected`.

@@ -21,10 +21,13 @@ pub struct Ema {
 impl Ema {
     const ALPHA: f64 = 0.02; // ~50 model steps of memory
 
+    /// A non-finite sample makes the average infinite (a model that predicted NaN is as bad
+    /// as a model can be, and must not be averaged away); the next finite one starts afresh.
     pub fn push(&mut self, x: f64) {
         self.value = Some(match self.value {
-            Some(v) => v + Self::ALPHA * (x - v),
-            None => x,
+            _ if !x.is_finite() => f64::INFINITY,
+            Some(v) if v.is_finite() => v + Self::ALPHA * (x - v),
+            _ => x,
         });
     }
 

@@ -178,9 +178,54 @@ fn truncated_or_damaged_files_are_clear_errors() {
     let plain = dir.path().join("plain.safetensors");
     vs.save(&plain).unwrap();
     let err = checkpoint::load(&plain).unwrap_err();
-    assert!(matches!(err, CheckpointError::NotCheckpoint(_)), "{err}");
+    let CheckpointError::InFile { path, source } = &err else {
+        panic!("a file's error names the file: {err}");
+    };
+    assert_eq!(path, &plain);
+    assert!(
+        matches!(**source, CheckpointError::NotCheckpoint(_)),
+        "{err}"
+    );
+    assert!(err.to_string().contains("plain.safetensors"), "{err}");
     let err = checkpoint::load(dir.path().join("absent.safetensors")).unwrap_err();
     assert!(err.to_string().contains("absent.safetensors"), "{err}");
+}
+
+#[test]
+fn non_finite_weights_are_refused_by_name() {
+    let cfg = small();
+    let (vs, _m) = model(&cfg, 1);
+    tch::no_grad(|| {
+        let vars = vs.variables();
+        let _ = vars["layer0.xhat.weight"]
+            .flatten(0, -1)
+            .get(0)
+            .fill_(f64::NAN);
+        let _ = vars["layer1.xhat.bias"].get(0).fill_(f64::INFINITY);
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("nan.safetensors");
+    checkpoint::save(&path, &vs, &cfg, &Meta::new(3, None)).unwrap();
+    let (mut target, _m) = model(&cfg, 2);
+    let before = weights_digest(&target);
+    let err = checkpoint::load_into(&path, &mut target, &cfg).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("nan.safetensors"), "{text}");
+    // Tensors are checked in name order: the first bad one is named.
+    assert!(
+        text.contains("`layer0.xhat.weight` holds 1 non-finite"),
+        "{text}"
+    );
+    assert_eq!(
+        weights_digest(&target),
+        before,
+        "a refused file changed the model"
+    );
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(matches!(
+        checkpoint::from_bytes(&bytes).unwrap_err(),
+        CheckpointError::NonFinite { count: 1, .. }
+    ));
 }
 
 /// Every variable's exact bits, in name order, hashed: equal only if the weights are identical.

@@ -8,7 +8,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use mtanet_control::{
     AgentConfig, AgentModel, ExplorationConfig, FrameShape, Health, Inline, Planner, Wheels,
 };
@@ -77,8 +76,7 @@ pub fn probe(args: ProbeArgs) -> anyhow::Result<()> {
     tch::set_num_threads(1);
     let (file, scene, agent) = scene_and_agent(args.config.as_ref(), args.track.as_ref())?;
     let cfg: ProbeConfig = file.section("trainer.probe")?;
-    let bytes = std::fs::read(&args.checkpoint)
-        .with_context(|| format!("reading {}", args.checkpoint.display()))?;
+    let (bytes, _) = mtanet_models::checkpoint::read(&args.checkpoint)?;
     let r = mtanet_eval::probe(&scene, &bytes, &agent, &cfg)?;
     println!("{}", serde_json::to_string_pretty(&r)?);
     Ok(())
@@ -136,11 +134,11 @@ pub fn drive_cmd(args: DriveArgs) -> anyhow::Result<()> {
         // The same baseline every `mta up` report carries.
         None if args.rule => mtanet_eval::rule_alone(&mut world, &reactive, &run)?,
         Some(ck) => {
-            let bytes = std::fs::read(ck).with_context(|| format!("reading {}", ck.display()))?;
-            let mut live = LiveModel::from_bytes(&bytes, 1)?;
+            let (bytes, decoded) = mtanet_models::checkpoint::read(ck)?;
+            let mut live = LiveModel::from_checkpoint(&decoded, 1)?;
             // Trusted for control only with a passing probe: the one its training recorded, as
             // `mta up` takes it, else measured here on this track.
-            let meta = mtanet_models::checkpoint::from_bytes(&bytes)?.meta;
+            let meta = decoded.meta;
             live.probe = match (meta.probe, meta.probe_step) {
                 (Some(p), Some(_)) => Some(p),
                 _ => {

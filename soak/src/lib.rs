@@ -83,7 +83,6 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     eprintln!("[soak] {machine}");
     let watch = PauseWatch::start(&load::allowed_cpus())?;
     let out = args.out.clone();
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mode = if args.lockstep {
         "lockstep"
     } else {

@@ -70,3 +70,47 @@ fn a_wrong_type_and_a_bad_stack_entry_are_errors_naming_the_key() {
         "{e}"
     );
 }
+
+/// `mta up --config bad.toml`: the error names the user's file, section and key (not the run
+/// folder's copy), and no run folder is left, with `--out` or the default `runs/<time>`.
+#[test]
+fn mta_up_names_the_users_file_and_leaves_no_run_folder() {
+    let cases = [
+        (
+            "[trainer]\npublsh_every_updates = 10\n",
+            "publsh_every_updates",
+        ),
+        (
+            "[trainer]\npublish_every_updates = \"ten\"\n",
+            "publish_every_updates",
+        ),
+        ("trainer = 5\n", "must be a table"),
+    ];
+    for (text, key) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("bad.toml");
+        std::fs::write(&bad, text).unwrap();
+        let given = dir.path().join("given");
+        for out in [Some(&given), None] {
+            let mut cmd = std::process::Command::new(mtanet_system_tests::bin("mta"));
+            cmd.current_dir(dir.path())
+                .args(["up", "--lockstep", "--sim-seconds", "1", "--config"])
+                .arg(&bad);
+            if let Some(o) = out {
+                cmd.arg("--out").arg(o);
+            }
+            let o = cmd.output().unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(!o.status.success(), "{text}: started\n{err}");
+            assert!(
+                err.contains("bad.toml") && err.contains("[trainer]") && err.contains(key),
+                "{text}: {err}"
+            );
+            assert!(!err.contains("stack.toml"), "{text}: names the copy: {err}");
+            assert!(!given.exists(), "{text}: left {}", given.display());
+            let runs = dir.path().join("runs");
+            let left = std::fs::read_dir(&runs).map_or(0, |d| d.count());
+            assert_eq!(left, 0, "{text}: left a folder in runs/");
+        }
+    }
+}

@@ -150,3 +150,15 @@ fn imagination_rolls_each_plan_out_in_one_batch_like_single_steps() {
     assert_eq!(im.imagine_until(&plans, later).unwrap(), Some(batched));
     assert_eq!(im.imagine_until(&plans, Instant::now()).unwrap(), None);
 }
+
+#[test]
+fn a_non_finite_error_makes_the_average_infinite_until_a_finite_one_restarts_it() {
+    let mut e = Ema::default();
+    e.push(0.5);
+    e.push(f64::NAN);
+    assert_eq!(e.get(), Some(f64::INFINITY));
+    e.push(0.25);
+    assert_eq!(e.get(), Some(0.25));
+    e.push(0.75);
+    assert!((e.get().unwrap() - 0.26).abs() < 1e-12);
+}

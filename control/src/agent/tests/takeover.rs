@@ -136,6 +136,33 @@ fn distrust_needs_a_sustained_bad_model_and_the_probe_gates_trust() {
     assert_eq!(a.stats.switches_to_reactive, 1);
 }
 
+/// NaN compares false with every threshold; a model whose error turned NaN (or inf) must lose
+/// the wheel at its next model step, not keep it forever or after a grace period.
+#[test]
+fn a_model_whose_error_is_not_finite_hands_the_wheel_back_at_once() {
+    let frame = line_frame(6.0, 0.0);
+    for broken in [f64::NAN, f64::INFINITY] {
+        let mut model = Toy::new(1, TRUSTED);
+        let mut plans = still_planner();
+        let mut a = agent(&cfg());
+        for _ in 0..30 {
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+                .unwrap();
+        }
+        assert!(a.driving_by_active_inference());
+        model.health.model_over_copy = Some(broken);
+        a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+            .unwrap();
+        assert!(!a.driving_by_active_inference(), "{broken}: still driving");
+        for _ in 0..100 {
+            a.step(&tick(&frame, CENTRED, [8.0; 2]), &mut model, &mut plans)
+                .unwrap();
+        }
+        assert!(!a.driving_by_active_inference(), "{broken}: trusted again");
+        assert_eq!(a.stats.switches_to_reactive, 1);
+    }
+}
+
 /// Exploration is for learning a model; weights fit for control (a passing probe, e.g. from a
 /// checkpoint) wait for the preference on the line, so active inference takes over sooner.
 #[test]
