@@ -59,10 +59,11 @@ fn unit(
         "# READY=1 once its iceoryx2 ports exist; WATCHDOG=1 from the service loop."
     );
     let _ = writeln!(u, "Type=notify\nNotifyAccess=main");
-    let mut exec = format!("{bin}/{}", spec.binary);
+    // The program: specifiers are expanded there, variables are not (`$` stays as written).
+    let mut exec = quoted(&format!("{bin}/{}", spec.binary), false);
     for a in &launch.args {
         exec.push(' ');
-        exec.push_str(&quoted(a));
+        exec.push_str(&quoted(a, true));
     }
     let _ = writeln!(u, "ExecStart={exec}\nWatchdogSec={}", spec.watchdog_s);
     // The classes `mta up` gives (docs/measurements.md, "Sharing the CPU").
@@ -108,12 +109,16 @@ fn unit(
     u
 }
 
-/// An argument as systemd's ExecStart= reads it: quoted where it holds a space or a quote.
-fn quoted(a: &str) -> String {
+/// A word as systemd's ExecStart= reads it: `%` (a specifier) doubled, `$` (a variable, expanded
+/// in the arguments only) doubled there, and quoted where it holds a space or a quote (a
+/// checkout under "My Robots/100%" works).
+fn quoted(a: &str, argument: bool) -> String {
+    let a = a.replace('%', "%%");
+    let a = if argument { a.replace('$', "$$") } else { a };
     if a.is_empty() || a.contains([' ', '\t', '"', '\'', '\\']) {
         format!("\"{}\"", a.replace('\\', "\\\\").replace('"', "\\\""))
     } else {
-        a.to_string()
+        a
     }
 }
 

@@ -177,7 +177,8 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         }
     }
 
-    let outcome = watch(&ipc, &mut sup, &shutdown, &out.join("progress.csv"));
+    let target = (args.sim_seconds > 0.0).then_some(args.sim_seconds);
+    let outcome = watch(&ipc, &mut sup, &shutdown, &out.join("progress.csv"), target);
     if let Some(line) = &outcome.as_ref().err() {
         eprintln!("\n[up] {line:#}");
     }
@@ -249,6 +250,7 @@ fn watch(
     sup: &mut Supervisor,
     shutdown: &Shutdown,
     progress_csv: &Path,
+    target_sim_s: Option<f64>,
 ) -> anyhow::Result<()> {
     let mut csv = ProgressCsv::create(progress_csv)?;
     let mut last_row = Instant::now();
@@ -318,6 +320,7 @@ fn watch(
                 last_cmd.as_ref(),
                 episodes_laps.1 + episodes_laps.2,
                 start.elapsed(),
+                target_sim_s,
             );
             if restarts > 0 {
                 line.push_str(&format!(" | restarts {restarts}"));
@@ -402,19 +405,45 @@ impl Latest {
     }
 }
 
-fn progress(o: Option<&Observation>, c: Option<&Command>, laps: u32, wall: Duration) -> String {
+/// The live line: how far the run is (of how much, and the wall time left at the pace so far),
+/// laps, who drives, and the model's standing.
+fn progress(
+    o: Option<&Observation>,
+    c: Option<&Command>,
+    laps: u32,
+    wall: Duration,
+    target_sim_s: Option<f64>,
+) -> String {
+    let wall = wall.as_secs_f64();
     let Some(v) = Latest::of(o, c) else {
-        return format!("{:.0} s: waiting for the simulator", wall.as_secs_f64());
+        return format!("{wall:.0} s: waiting for the simulator");
     };
     let fmt = |v: Option<f32>| v.map_or("-".into(), |v| format!("{v:.2}"));
+    let how_far = match target_sim_s {
+        Some(t) if v.sim_s > 0.0 => {
+            let left = wall * (t - v.sim_s).max(0.0) / v.sim_s;
+            format!(
+                "{:.0} of {t:.0} s sim ({:.0}%), {wall:.0} s wall, ~{} left",
+                v.sim_s,
+                100.0 * v.sim_s / t,
+                humanize(left)
+            )
+        }
+        _ => format!("{:.0} s sim, {wall:.0} s wall", v.sim_s),
+    };
     format!(
-        "step {} ({:.0} s sim, {:.0} s wall) | laps {laps} | driver {} | model/copy-last {} | probe {} | predictor {:.2} ms",
-        v.step,
-        v.sim_s,
-        wall.as_secs_f64(),
+        "{how_far} | laps {laps} | driver {} | model/copy-last {} | probe {}",
         v.driver.unwrap_or("-"),
         fmt(v.ratio),
         fmt(v.probe),
-        v.predictor_ms.unwrap_or(0.0),
     )
+}
+
+/// Seconds as "42 s" or "3.5 min".
+fn humanize(s: f64) -> String {
+    if s < 90.0 {
+        format!("{s:.0} s")
+    } else {
+        format!("{:.1} min", s / 60.0)
+    }
 }

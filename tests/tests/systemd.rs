@@ -61,6 +61,53 @@ fn rendered_units_pass_systemd_analyze_verify() {
     );
 }
 
+/// A checkout under a path with a space, `%` and `$`: the units quote and escape the binary and
+/// the config so systemd finds both (verify checks that ExecStart's program exists).
+#[test]
+fn units_for_a_path_with_space_percent_and_dollar_verify() {
+    let dir = tempfile::tempdir().unwrap();
+    let odd = dir.path().join("my robots 100% $HOME");
+    let bins = odd.join("bin");
+    std::fs::create_dir_all(&bins).unwrap();
+    for b in ["mta", "mta-simulator", "mta-predictor", "mta-trainer"] {
+        std::os::unix::fs::symlink(bin_dir().join(b), bins.join(b)).unwrap();
+    }
+    let config = odd.join("stack 50%.toml");
+    std::fs::copy(here().join("../ops/mtanet.toml"), &config).unwrap();
+    let dest = dir.path().join("units");
+    let out = Command::new(bins.join("mta"))
+        .args(["systemd", "--user", "root", "--dest"])
+        .arg(&dest)
+        .arg("--config")
+        .arg(&config)
+        .arg("--bin")
+        .arg(&bins)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let sim = std::fs::read_to_string(dest.join("mtanet-simulator.service")).unwrap();
+    let exec = sim.lines().find(|l| l.starts_with("ExecStart=")).unwrap();
+    assert!(
+        exec.contains("100%% $$HOME") && exec.contains("stack 50%%.toml"),
+        "{exec}"
+    );
+    let units: Vec<_> = ["mtanet-simulator.service", "mtanet-predictor.service", "mtanet-trainer.service", "mtanet.target"]
+        .iter()
+        .map(|u| dest.join(u))
+        .collect();
+    let verify = Command::new("systemd-analyze")
+        .arg("verify")
+        .args(&units)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&verify.stderr);
+    let complaints: Vec<&str> = stderr.lines().filter(|l| l.contains("mtanet") || l.contains("robots")).collect();
+    assert!(
+        verify.status.success() && complaints.is_empty(),
+        "systemd-analyze verify:\n{stderr}"
+    );
+}
+
 #[test]
 fn predictor_notifies_ready_watchdog_and_stopping() {
     let dir = tempfile::tempdir().unwrap();
