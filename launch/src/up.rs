@@ -127,9 +127,12 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             )?;
         }
     }
+    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
     let info = RunInfo {
         track: track.clone(),
-        lockstep: args.lockstep,
+        // The mode the simulator runs in (the flag, else the config's, else real time).
+        lockstep: !realtime,
         learning: !(args.no_learning || args.rule),
         checkpoint: args.checkpoint.clone(),
         config: args.config.clone(),
@@ -141,8 +144,6 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         config.display()
     );
 
-    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
-    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
     let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
     let mut order = Vec::new();

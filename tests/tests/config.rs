@@ -114,3 +114,59 @@ fn mta_up_names_the_users_file_and_leaves_no_run_folder() {
         }
     }
 }
+
+/// Keys of `want` (the code's defaults) missing from `got` (the file) or different there, by
+/// dotted path.
+fn differences(path: &str, want: &toml::Value, got: Option<&toml::Value>, out: &mut Vec<String>) {
+    match (want, got) {
+        (toml::Value::Table(w), Some(toml::Value::Table(g))) => {
+            for (k, v) in w {
+                differences(&format!("{path}.{k}"), v, g.get(k), out);
+            }
+        }
+        (_, None) => out.push(format!("{path} missing (default {want})")),
+        // f32 defaults widen to f64 (0.3 -> 0.30000001192092896): same value to f32 precision.
+        (toml::Value::Float(w), Some(toml::Value::Float(g))) if ((w - g) / w).abs() < 1e-6 => {}
+        (w, Some(g)) if w != g => out.push(format!("{path} = {g} in the file, {w} in the code")),
+        _ => {}
+    }
+}
+
+fn default_of<T: serde::Serialize + Default>() -> toml::Value {
+    toml::Value::try_from(T::default()).unwrap()
+}
+
+/// ops/mtanet.toml says "a missing key takes the default shown here": every key of every
+/// section's default is in the file, with the same value (unknown keys in the file fail the
+/// sections' own parsing, `shipped_config_matches_every_section`).
+#[test]
+fn the_shipped_file_lists_every_default_with_its_value() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../ops/mtanet.toml");
+    let file: toml::Table = toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let sections = [
+        ("ipc", default_of::<IpcConfig>()),
+        (
+            "simulator",
+            default_of::<mtanet_simulator::config::SimulatorConfig>(),
+        ),
+        (
+            "predictor",
+            default_of::<mtanet_predictor::config::PredictorConfig>(),
+        ),
+        (
+            "trainer",
+            default_of::<mtanet_trainer::config::TrainerConfig>(),
+        ),
+    ];
+    let mut out = Vec::new();
+    for (name, want) in &sections {
+        differences(name, want, file.get(*name), &mut out);
+    }
+    // The track's default is an absolute path into the checkout: the file names it in a comment.
+    out.retain(|d| !d.starts_with("simulator.scene.track missing"));
+    assert!(
+        out.is_empty(),
+        "ops/mtanet.toml and the code's defaults differ:\n{}",
+        out.join("\n")
+    );
+}

@@ -160,7 +160,12 @@ fn a_stopped_trainer_saves_the_updates_it_had_not_published() {
     let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
     let stats = StatsWatch::open(&ns);
-    let mut sim = start("mta-simulator", &run, &["--expect-trainer"], dir.path());
+    let mut sim = start(
+        "mta-simulator",
+        &run,
+        &["--mode", "lockstep", "--expect-trainer"],
+        dir.path(),
+    );
     assert!(
         sim.wait(Duration::from_secs(120)).success(),
         "{}",

@@ -57,7 +57,12 @@ fn lockstep_500_steps_every_step_answered_and_clean_sigterm_exit() {
         "peers did not come up"
     );
 
-    let mut sim = start("mta-simulator", &run, &["--expect-trainer"], dir.path());
+    let mut sim = start(
+        "mta-simulator",
+        &run,
+        &["--mode", "lockstep", "--expect-trainer"],
+        dir.path(),
+    );
     let status = sim.wait(Duration::from_secs(120));
     assert!(
         status.success(),
@@ -106,7 +111,7 @@ fn lockstep_without_a_trainer_waits_out_a_stopped_predictor() {
     };
     let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 1, Duration::from_secs(30));
-    let mut sim = start("mta-simulator", &run, &[], dir.path());
+    let mut sim = start("mta-simulator", &run, &["--mode", "lockstep"], dir.path());
     let stats = StatsWatch::open(&ns);
     stats.wait_for("predictor", Duration::from_secs(30), |s| s.count > 0);
     predictor.signal(libc::SIGSTOP);
@@ -140,7 +145,7 @@ fn a_killed_predictor_is_survived_cleaned_up_and_replaced() {
     let mut trainer = start("mta-trainer", &run, &[], dir.path());
     let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 2, Duration::from_secs(30));
-    let mut sim = start("mta-simulator", &run, &[], dir.path());
+    let mut sim = start("mta-simulator", &run, &["--mode", "lockstep"], dir.path());
     let stats = StatsWatch::open(&ns);
     stats.wait_for("predictor", Duration::from_secs(30), |s| s.count > 0);
 
@@ -246,7 +251,7 @@ fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
     trainer.signal(libc::SIGSTOP);
     // Unpaced: a paced lockstep simulator waits for its trainer (it learns on a schedule), a
     // free-running one (real time, or lockstep without pacing) does not.
-    let free = ["--expect-trainer", "--pace", "0"];
+    let free = ["--mode", "lockstep", "--expect-trainer", "--pace", "0"];
     let mut sim = start("mta-simulator", &run, &free, dir.path());
     // The run's last figures come right before the simulator lingers for its subscriber.
     stats.wait_for("simulator", Duration::from_secs(60), |s| s.count == 200);

@@ -84,24 +84,36 @@ fn units_for_a_path_with_space_percent_and_dollar_verify() {
         .arg(&bins)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let sim = std::fs::read_to_string(dest.join("mtanet-simulator.service")).unwrap();
     let exec = sim.lines().find(|l| l.starts_with("ExecStart=")).unwrap();
     assert!(
         exec.contains("100%% $$HOME") && exec.contains("stack 50%%.toml"),
         "{exec}"
     );
-    let units: Vec<_> = ["mtanet-simulator.service", "mtanet-predictor.service", "mtanet-trainer.service", "mtanet.target"]
-        .iter()
-        .map(|u| dest.join(u))
-        .collect();
+    let units: Vec<_> = [
+        "mtanet-simulator.service",
+        "mtanet-predictor.service",
+        "mtanet-trainer.service",
+        "mtanet.target",
+    ]
+    .iter()
+    .map(|u| dest.join(u))
+    .collect();
     let verify = Command::new("systemd-analyze")
         .arg("verify")
         .args(&units)
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&verify.stderr);
-    let complaints: Vec<&str> = stderr.lines().filter(|l| l.contains("mtanet") || l.contains("robots")).collect();
+    let complaints: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("mtanet") || l.contains("robots"))
+        .collect();
     assert!(
         verify.status.success() && complaints.is_empty(),
         "systemd-analyze verify:\n{stderr}"

@@ -76,7 +76,7 @@ pub struct SimulatorConfig {
 impl Default for SimulatorConfig {
     fn default() -> Self {
         Self {
-            mode: Mode::Lockstep,
+            mode: Mode::Realtime,
             command_timeout_ms: 200,
             on_missed_command: MissPolicy::Teacher,
             wait_for_peers_s: 30.0,

@@ -4,11 +4,12 @@
 mod common;
 
 use mtanet_scenes::{Teacher, TeacherConfig};
-use mtanet_simulator::config::SimulatorConfig;
+use mtanet_simulator::config::{Mode, SimulatorConfig};
 
 #[test]
 fn non_finite_commands_are_rejected_counted_and_survived() {
     let cfg = SimulatorConfig {
+        mode: Mode::Lockstep,
         max_steps: 200,
         wait_for_peers_s: 20.0,
         ..Default::default()
@@ -33,6 +34,7 @@ fn non_finite_commands_are_rejected_counted_and_survived() {
 #[test]
 fn a_lost_car_is_put_back_as_a_new_episode() {
     let cfg = SimulatorConfig {
+        mode: Mode::Lockstep,
         max_steps: 600,
         wait_for_peers_s: 20.0,
         reset_after_lost_s: 1.0,
@@ -75,6 +77,7 @@ fn a_lost_car_is_put_back_as_a_new_episode() {
 fn replay_and_observations_carry_the_applied_command_and_its_source() {
     use mtanet_ipc::CommandSource;
     let cfg = SimulatorConfig {
+        mode: Mode::Lockstep,
         max_steps: 100,
         wait_for_peers_s: 20.0,
         replay_linger_s: 0.5,

@@ -9,7 +9,7 @@ use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
 use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{Command, Observation, TrainerStatus, names, stamp};
 use mtanet_scenes::{SceneConfig, Teacher, TeacherConfig, World};
-use mtanet_simulator::config::SimulatorConfig;
+use mtanet_simulator::config::{Mode, SimulatorConfig};
 use mtanet_simulator::service::{Ports, run};
 
 #[test]
@@ -19,6 +19,7 @@ fn the_simulator_waits_for_the_trainers_updates_and_runs_free_without_it() {
     };
     let sim_ipc = ipc.clone();
     let cfg = SimulatorConfig {
+        mode: Mode::Lockstep,
         max_steps: 400,
         wait_for_peers_s: 20.0,
         replay: false,
