@@ -140,9 +140,8 @@ mod tests {
         let ck =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/oval_lockstep.safetensors");
         let r = ratio(&ck, &npz).unwrap();
-        assert!(
-            r.is_finite() && r > 0.0 && r < 1.0,
-            "model over copy-last {r}"
-        );
+        // The committed checkpoint predicts this drive at 0.36-0.38 of copy-last's error; an
+        // untrained model or a broken ratio lands far from it.
+        assert!((0.25..0.5).contains(&r), "model over copy-last {r}");
     }
 }

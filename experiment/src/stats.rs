@@ -93,6 +93,14 @@ mod tests {
         let x = [3.1, 0.4, 2.2, 5.0, 1.7];
         let (lo, hi) = bootstrap_median_difference(&x, &x, 2000, 0.95, 1).unwrap();
         assert!(lo < 0.0 && 0.0 < hi, "[{lo}, {hi}]");
+        // The interval moves with the data: shifting one sample by 5 shifts it by 5 exactly
+        // (same seed, same resamples), which no fixed interval does.
+        let shifted: Vec<f64> = x.iter().map(|v| v + 5.0).collect();
+        let (lo5, hi5) = bootstrap_median_difference(&shifted, &x, 2000, 0.95, 1).unwrap();
+        assert!(
+            (lo5 - lo - 5.0).abs() < 1e-9 && (hi5 - hi - 5.0).abs() < 1e-9,
+            "[{lo}, {hi}] shifted by 5 gave [{lo5}, {hi5}]"
+        );
     }
 
     #[test]

@@ -108,8 +108,10 @@ fn write_png(path: &Path, (width, height): (u32, u32), px: &[u8]) -> Result<(), 
     w.finish().map_err(|e| err(&e))
 }
 
-#[cfg(test)]
-pub(crate) mod test_png {
+/// What a PNG shows, for tests here and in other crates: a chart's test counts the pixels of
+/// the colours it drew with (a blank or axes-only picture has none beyond the legend's swatch,
+/// at most 17 x 13 pixels).
+pub mod test_png {
     use std::path::Path;
 
     /// The PNG's size and its RGB pixels.

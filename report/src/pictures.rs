@@ -116,12 +116,17 @@ mod tests {
             .map(|k| [10f64.powf(k as f64 / 10.0), 9.0])
             .collect();
         latency_picture(&dir.path().join("latency.png"), &[("step", &bins)]).unwrap();
-        for f in ["lap_trace.png", "latency.png"] {
-            let file = std::fs::File::open(dir.path().join(f)).unwrap();
-            let info = png::Decoder::new(std::io::BufReader::new(file))
-                .read_info()
-                .unwrap();
-            assert!(info.info().width >= 900, "{f}");
-        }
+        use mtanet_plot::test_png::{decode, near};
+        // What was drawn, not just a canvas: both drivers' stretches of the path, and the bars.
+        let (width, _, px) = decode(&dir.path().join("lap_trace.png"));
+        assert!(width >= 900);
+        assert!(near(&px, GREEN) > 500, "the reactive half of the path");
+        assert!(
+            near(&px, BLUE) > 500,
+            "the active-inference half of the path"
+        );
+        let (width, _, px) = decode(&dir.path().join("latency.png"));
+        assert!(width >= 900);
+        assert!(near(&px, BLUE) > 2000, "the histogram's bars");
     }
 }

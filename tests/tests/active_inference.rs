@@ -72,6 +72,18 @@ fn active_inference_drives_a_lap_through_the_learned_model() {
     ] {
         assert!(out.join(f).exists(), "{f} missing from the run folder");
     }
+    // The pictures show the run: the path active inference drove, the step's latency bars.
+    use mtanet_plot::{
+        BLUE,
+        test_png::{decode, near},
+    };
+    let (_, _, px) = decode(&out.join("lap_trace.png"));
+    assert!(
+        near(&px, BLUE) > 500,
+        "lap_trace.png shows no active-inference path"
+    );
+    let (_, _, px) = decode(&out.join("latency.png"));
+    assert!(near(&px, BLUE) > 2000, "latency.png shows no histogram");
     let c = nodes(&ns);
     assert!(
         c.alive.is_empty() && c.dead.is_empty(),

@@ -121,6 +121,15 @@ fn top_shows_a_learning_stack_and_the_run_folder_has_its_curves() {
     for f in ["learning.png", "model_error.png", "latency.png"] {
         assert!(run.join(f).exists(), "mta plot did not draw {f}");
     }
+    // Curves, not empty axes: the loss (blue) and the histogram's bars.
+    use mtanet_plot::{
+        BLUE,
+        test_png::{decode, near},
+    };
+    for (f, least) in [("learning.png", 300), ("latency.png", 2000)] {
+        let (_, _, px) = decode(&run.join(f));
+        assert!(near(&px, BLUE) > least, "{f} draws nothing");
+    }
     let c = nodes(&ns);
     assert!(c.alive.is_empty() && c.dead.is_empty(), "{c:?}");
     remove_namespace_files(&ns);

@@ -329,7 +329,9 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         tr.session_updates, tr.weights_published, pr.weights_received
     );
     assert!(
-        sent >= 45 && received * 10 >= sent * 9,
+        // All of them crossed in every run measured (50 of 50); one may still be in flight
+        // when the simulator's linger ends.
+        sent >= 45 && received + 1 >= sent,
         "replay chunks crossed: {received} of {sent}\n{tr:?}"
     );
     assert!(
