@@ -22,6 +22,8 @@ pub struct PlotArgs {
 
 /// `learning.png` from `learning.jsonl`; false when the run has no learning log.
 pub fn learning(dir: &Path) -> anyhow::Result<bool> {
+    let gate = Gate::of(dir);
+    let probe_ref = format!("min_probe {}", gate.min_probe);
     let log = dir.join("learning.jsonl");
     if !log.exists() {
         return Ok(false);
@@ -66,7 +68,7 @@ pub fn learning(dir: &Path) -> anyhow::Result<bool> {
             title: "Counterfactual probe of the weights",
             y_label: "rank correlation",
             series: vec![series("probe", GREEN, xy(&|p| p.probe))],
-            refs: vec![(0.7, "min_probe 0.7")],
+            refs: vec![(gate.min_probe, &probe_ref)],
             log_y: false,
             y_range: Some((-0.2, 1.0)),
         },
@@ -85,6 +87,33 @@ pub fn learning(dir: &Path) -> anyhow::Result<bool> {
     ];
     mtanet_plot::lines_chart(&dir.join("learning.png"), "training update", &panels)?;
     Ok(true)
+}
+
+/// The trust thresholds the run was made with (its `stack.toml`), else the shipped defaults: the
+/// plots' reference lines show the gate that applied.
+struct Gate {
+    min_probe: f64,
+    trust_ratio: f64,
+}
+
+impl Gate {
+    fn of(dir: &Path) -> Self {
+        let table = mtanet_files::read_table(&dir.join("stack.toml")).ok();
+        let get = |key: &str, default: f64| {
+            (table.as_ref())
+                .and_then(|t| {
+                    t.get("predictor")?
+                        .get("active_inference")?
+                        .get(key)?
+                        .as_float()
+                })
+                .unwrap_or(default)
+        };
+        Self {
+            min_probe: get("min_probe", 0.7),
+            trust_ratio: get("trust_ratio", 0.8),
+        }
+    }
 }
 
 fn series(name: &str, colour: mtanet_plot::Rgb, points: Vec<(f64, f64)>) -> Series<'_> {
@@ -106,6 +135,9 @@ fn moving_mean(v: &[(f64, f64)], n: usize) -> Vec<(f64, f64)> {
 
 /// `model_error.png` from `progress.csv`; false when the run has none.
 pub fn model_error(dir: &Path) -> anyhow::Result<bool> {
+    let gate = Gate::of(dir);
+    let probe_ref = format!("min_probe {}", gate.min_probe);
+    let trust_ref = format!("trusted below {}", gate.trust_ratio);
     let path = dir.join("progress.csv");
     let Ok(text) = std::fs::read_to_string(&path) else {
         return Ok(false);
@@ -138,7 +170,10 @@ pub fn model_error(dir: &Path) -> anyhow::Result<bool> {
             title: "Live model's next-frame error over copy-last-frame's",
             y_label: "error ratio (log scale)",
             series: vec![series("model / copy-last", BLUE, ratio)],
-            refs: vec![(1.0, "as good as copy-last"), (0.8, "trusted below 0.8")],
+            refs: vec![
+                (1.0, "as good as copy-last"),
+                (gate.trust_ratio, &trust_ref),
+            ],
             log_y: true,
             y_range: None,
         },
@@ -146,7 +181,7 @@ pub fn model_error(dir: &Path) -> anyhow::Result<bool> {
             title: "Probe of the predictor's weights",
             y_label: "rank correlation",
             series: vec![series("probe", GREEN, probe)],
-            refs: vec![(0.7, "min_probe 0.7")],
+            refs: vec![(gate.min_probe, &probe_ref)],
             log_y: false,
             y_range: Some((-0.2, 1.0)),
         },
