@@ -109,6 +109,19 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     if let Some(ns) = &args.namespace {
         ipc.namespace = ns.clone();
     }
+    // Two stacks in one namespace would answer each other's observations.
+    let live = mtanet_ipc::node::census(&ipc)?.alive;
+    if !live.is_empty() {
+        if reserved {
+            let _ = std::fs::remove_dir_all(&out);
+        }
+        bail!(
+            "namespace {:?} is in use by a live stack ({}): stop it, or give this one another \
+             with --namespace NAME (or [ipc] namespace in the config)",
+            ipc.namespace,
+            live.join(", ")
+        );
+    }
     let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
     let track = args.track.clone().unwrap_or(scene.track);
     mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;

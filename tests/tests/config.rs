@@ -170,3 +170,39 @@ fn the_shipped_file_lists_every_default_with_its_value() {
         out.join("\n")
     );
 }
+
+/// A second stack in a namespace a live one uses is refused, naming the namespace and the way
+/// out, and leaves no run folder.
+#[test]
+fn mta_up_refuses_a_namespace_in_use() {
+    use mtanet_system_tests::*;
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("busy");
+    let mut predictor = start("mta-predictor", &run_in(&ns, dir.path()), &[], dir.path());
+    wait_for_alive(&ns, 1, std::time::Duration::from_secs(30));
+    let o = std::process::Command::new(bin("mta"))
+        .current_dir(dir.path())
+        .args([
+            "up",
+            "--lockstep",
+            "--sim-seconds",
+            "1",
+            "--namespace",
+            &ns,
+            "--config",
+        ])
+        .arg(here().join("../ops/mtanet.toml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "a second stack started\n{err}");
+    assert!(
+        err.contains(&format!("namespace {ns:?} is in use")) && err.contains("--namespace"),
+        "{err}"
+    );
+    let left = std::fs::read_dir(dir.path().join("runs")).map_or(0, |d| d.count());
+    assert_eq!(left, 0, "a run folder was left");
+    predictor.signal(libc::SIGTERM);
+    assert!(predictor.wait(std::time::Duration::from_secs(20)).success());
+    remove_namespace_files(&ns);
+}
