@@ -26,6 +26,7 @@ fn a_checkpoint_with_a_nan_weight_is_refused_naming_file_and_tensor() {
     let nan = nan_checkpoint(dir.path());
     let config = here().join("../ops/mtanet.toml");
     let out = dir.path().join("run");
+    let out = out.to_string_lossy();
     let up = [
         "up",
         "--lockstep",
@@ -33,18 +34,19 @@ fn a_checkpoint_with_a_nan_weight_is_refused_naming_file_and_tensor() {
         "--sim-seconds",
         "2",
         "--out",
+        &out,
     ];
-    let runs: [Vec<std::ffi::OsString>; 3] = [
-        up.iter()
-            .map(Into::into)
-            .chain([out.clone().into()])
-            .collect(),
-        vec!["drive".into(), "--steps".into(), "50".into()],
-        vec!["probe".into()],
+    // Every command that loads a checkpoint, and the predictor on its own (it refuses the file
+    // before it joins a stack).
+    let runs: [(&str, &[&str]); 4] = [
+        ("mta", &up),
+        ("mta", &["drive", "--steps", "50"]),
+        ("mta", &["probe"]),
+        ("mta-predictor", &[]),
     ];
-    for args in runs {
-        let o = Command::new(bin("mta"))
-            .args(&args)
+    for (binary, args) in runs {
+        let o = Command::new(bin(binary))
+            .args(args)
             .arg("--config")
             .arg(&config)
             .arg("--checkpoint")
@@ -52,25 +54,14 @@ fn a_checkpoint_with_a_nan_weight_is_refused_naming_file_and_tensor() {
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success(), "{args:?} ran with NaN weights\n{err}");
+        assert!(
+            !o.status.success(),
+            "{binary} {args:?} ran with NaN weights\n{err}"
+        );
         assert!(
             err.contains("nan.safetensors")
                 && err.contains("`layer0.xhat.weight` holds 1 non-finite"),
-            "{args:?}: {err}"
+            "{binary} {args:?}: {err}"
         );
     }
-    // The predictor on its own refuses it before it joins a stack.
-    let o = Command::new(bin("mta-predictor"))
-        .arg("--config")
-        .arg(&config)
-        .arg("--checkpoint")
-        .arg(&nan)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "the predictor started\n{err}");
-    assert!(
-        err.contains("nan.safetensors") && err.contains("non-finite"),
-        "{err}"
-    );
 }
