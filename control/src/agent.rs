@@ -218,18 +218,7 @@ impl Agent {
         let mut plan = None;
         if model_tick {
             let health = model.health();
-            // NaN compares false with everything: test for "not good", not for "bad".
-            let ratio = health.model_over_copy;
-            let bad = ratio.is_some_and(|r| !(r <= self.cfg.distrust_ratio));
-            self.distrust_steps = if ratio.is_some_and(|r| !r.is_finite()) {
-                // A model that predicts NaN or inf is not given the usual grace: the rule
-                // drives from this step on.
-                self.cfg.distrust_after_steps.max(1)
-            } else if bad {
-                self.distrust_steps + 1
-            } else {
-                0
-            };
+            self.judge_error(health.model_over_copy);
             match self.mode {
                 Mode::ActiveInference if !self.still_trusted() => {
                     tracing::warn!(
@@ -384,6 +373,19 @@ impl Agent {
             driver,
             plan,
         }
+    }
+
+    /// Counts the model steps in a row its error stayed above `distrust_ratio`; NaN compares
+    /// false with everything, so the test is for "not good", not for "bad". A model predicting NaN
+    /// or inf gets no grace: the rule drives from this step on.
+    fn judge_error(&mut self, ratio: Option<f64>) {
+        self.distrust_steps = if ratio.is_some_and(|r| !r.is_finite()) {
+            self.cfg.distrust_after_steps.max(1)
+        } else if ratio.is_some_and(|r| !(r <= self.cfg.distrust_ratio)) {
+            self.distrust_steps + 1
+        } else {
+            0
+        };
     }
 
     fn trusted(&self, h: &Health) -> bool {

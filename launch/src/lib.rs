@@ -6,6 +6,7 @@
 pub mod baseline;
 pub mod notify;
 pub mod plan;
+mod progress;
 pub mod runcfg;
 pub mod stack;
 pub mod supervisor;
