@@ -165,6 +165,34 @@ impl Agent {
     {
         // Catch up if the caller skipped `after` for the previous step.
         self.after(model, plans)?;
+        let model_tick = self.observe(t, model, plans);
+        // Losing the line under active inference hands over to the fallback at once.
+        if self.mode == Mode::ActiveInference
+            && self.lost_ticks >= self.ticks(self.cfg.fallback_after_s)
+        {
+            tracing::warn!(
+                segment = self.segment,
+                "line lost under active inference: the reactive fallback drives"
+            );
+            self.mode = Mode::Fallback;
+            self.stats.fallbacks += 1;
+            self.spare.clear();
+        }
+        let plan = if model_tick {
+            self.choose_driver(t, model, plans)
+        } else {
+            None
+        };
+        Ok(self.command(t, model, plan))
+    }
+
+    /// Takes in what this step senses (a new episode, the preference, whether the line is
+    /// lost); true when it begins a model segment, whose model step is deferred to `after`.
+    fn observe<M, P>(&mut self, t: &Tick, model: &mut M, plans: &mut P) -> bool
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
         if self.episode != Some(t.episode) {
             if self.episode.is_some() {
                 self.new_episode(model, plans, t.lockstep);
@@ -202,92 +230,109 @@ impl Agent {
         } else {
             self.applied.clear();
         }
+        model_tick
+    }
 
-        // Losing the line under active inference hands over to the fallback at once.
-        if self.mode == Mode::ActiveInference
-            && self.lost_ticks >= self.ticks(self.cfg.fallback_after_s)
-        {
-            tracing::warn!(
-                segment = self.segment,
-                "line lost under active inference: the reactive fallback drives"
-            );
-            self.mode = Mode::Fallback;
-            self.stats.fallbacks += 1;
-            self.spare.clear();
-        }
+    /// At a segment's start: who drives on, from the model's health and the line; the plan
+    /// in force when active inference drives.
+    fn choose_driver<M, P>(
+        &mut self,
+        t: &Tick,
+        model: &mut M,
+        plans: &mut P,
+    ) -> Option<(Outcome, Duration)>
+    where
+        M: AgentModel,
+        P: PlanService<M::Snapshot>,
+    {
+        let health = model.health();
+        self.judge_error(health.model_over_copy);
         let mut plan = None;
-        if model_tick {
-            let health = model.health();
-            self.judge_error(health.model_over_copy);
-            match self.mode {
-                Mode::ActiveInference if !self.still_trusted() => {
-                    tracing::warn!(
-                        ?health,
-                        "world model no longer trusted: the reactive rule drives"
-                    );
-                    self.mode = Mode::Reactive;
-                    self.stats.switches_to_reactive += 1;
-                    self.spare.clear();
-                }
-                Mode::ActiveInference => plan = self.take_plan(t, plans),
-                Mode::Reactive | Mode::Fallback if self.arming => {
-                    // Active inference takes the wheel only with a fresh plan in hand: without
-                    // one it would hold the rule's last command for whole segments, which can
-                    // leave the line in a bend.
-                    self.arming = false;
-                    if let Some(p) = self.fresh_plan(t, plans) {
-                        tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
-                        self.mode = Mode::ActiveInference;
-                        self.recovery.reset();
-                        self.stats.switches_to_active_inference += 1;
-                        let s = &mut self.stats;
-                        s.first_takeover_step.get_or_insert(
-                            s.reactive_steps
-                                + s.exploration_steps
-                                + s.active_inference_steps
-                                + s.fallback_steps,
-                        );
-                        self.adopt(&p.0);
-                        plan = Some(p);
-                    }
-                }
-                Mode::Reactive | Mode::Fallback => {
-                    // Take over only with the car on the line (not in the middle of an
-                    // exploration segment or a search).
-                    let may_resume =
-                        self.found_ticks >= self.ticks(self.cfg.resume_after_s) && t.line[1];
-                    let trusted = self.trusted(&health);
-                    if may_resume && self.mode == Mode::Fallback && !trusted {
-                        // The line is found again but the model has lost its trust meanwhile:
-                        // the fallback's job is done, and the rule (exploring while learning)
-                        // drives until the model earns trust again.
-                        tracing::info!(
-                            segment = self.segment,
-                            ?health,
-                            "line found again; the world model is not trusted: the reactive rule drives"
-                        );
-                        self.mode = Mode::Reactive;
-                        self.recovery.reset();
-                    }
-                    if may_resume && self.cost.is_some() && trusted {
-                        if !plans.idle() {
-                            // A plan still out from before the fallback: its segment is past.
-                            let _ = plans.wait(self.drain_wait(t.lockstep));
-                        }
-                        // Hold the rule's command for this segment, so the plan's start is
-                        // exact, and plan the next one from it.
-                        self.committed = self.reactive.act(t.line);
-                        self.arming = true;
-                        self.spare.clear();
-                        self.defer_submit(Some(Drive::from_wheels(self.committed)));
-                    }
+        match self.mode {
+            Mode::ActiveInference if !self.still_trusted() => {
+                tracing::warn!(
+                    ?health,
+                    "world model no longer trusted: the reactive rule drives"
+                );
+                self.mode = Mode::Reactive;
+                self.stats.switches_to_reactive += 1;
+                self.spare.clear();
+            }
+            Mode::ActiveInference => plan = self.take_plan(t, plans),
+            Mode::Reactive | Mode::Fallback if self.arming => {
+                // Active inference takes the wheel only with a fresh plan in hand: without
+                // one it would hold the rule's last command for whole segments, which can
+                // leave the line in a bend.
+                self.arming = false;
+                if let Some(p) = self.fresh_plan(t, plans) {
+                    tracing::info!(segment = self.segment, ?health, from = ?self.mode, "active inference takes over");
+                    self.take_over(&p.0);
+                    plan = Some(p);
                 }
             }
-            if self.mode == Mode::ActiveInference {
-                self.defer_submit(None);
-            }
+            Mode::Reactive | Mode::Fallback => self.consider_resuming(t, &health, plans),
         }
-        Ok(match self.mode {
+        if self.mode == Mode::ActiveInference {
+            self.defer_submit(None);
+        }
+        plan
+    }
+
+    fn take_over(&mut self, plan: &Outcome) {
+        self.mode = Mode::ActiveInference;
+        self.recovery.reset();
+        self.stats.switches_to_active_inference += 1;
+        let s = &mut self.stats;
+        s.first_takeover_step.get_or_insert(
+            s.reactive_steps + s.exploration_steps + s.active_inference_steps + s.fallback_steps,
+        );
+        self.adopt(plan);
+    }
+
+    /// Under the rule or the fallback: with the car on the line and the model trusted, hold the
+    /// rule's command for this segment and plan the next from it (arming).
+    fn consider_resuming<P, S>(&mut self, t: &Tick, health: &Health, plans: &mut P)
+    where
+        P: PlanService<S>,
+    {
+        // Take over only with the car on the line (not in the middle of an exploration
+        // segment or a search).
+        let may_resume = self.found_ticks >= self.ticks(self.cfg.resume_after_s) && t.line[1];
+        let trusted = self.trusted(health);
+        if may_resume && self.mode == Mode::Fallback && !trusted {
+            // The line is found again but the model has lost its trust meanwhile: the
+            // fallback's job is done, and the rule (exploring while learning) drives until
+            // the model earns trust again.
+            tracing::info!(
+                segment = self.segment,
+                ?health,
+                "line found again; the world model is not trusted: the reactive rule drives"
+            );
+            self.mode = Mode::Reactive;
+            self.recovery.reset();
+        }
+        if may_resume && self.cost.is_some() && trusted {
+            if !plans.idle() {
+                // A plan still out from before the fallback: its segment is past.
+                let _ = plans.wait(self.drain_wait(t.lockstep));
+            }
+            // Hold the rule's command for this segment, so the plan's start is exact, and plan
+            // the next one from it.
+            self.committed = self.reactive.act(t.line);
+            self.arming = true;
+            self.spare.clear();
+            self.defer_submit(Some(Drive::from_wheels(self.committed)));
+        }
+    }
+
+    /// The wheel command of this step, from the driver now in charge.
+    fn command<M: AgentModel>(
+        &mut self,
+        t: &Tick,
+        model: &M,
+        plan: Option<(Outcome, Duration)>,
+    ) -> Decision {
+        match self.mode {
             Mode::ActiveInference => {
                 let w = self.cfg.reflex.apply(self.committed, t.line);
                 self.decided(w, Driver::ActiveInference, plan)
@@ -316,7 +361,7 @@ impl Agent {
                 };
                 self.decided(w, d, None)
             }
-        })
+        }
     }
 
     fn defer_submit(&mut self, restart: Option<Drive>) {

@@ -22,7 +22,8 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
     let start = Instant::now();
     let no_log = |error: anyhow::Error| CellError { error, log: None };
     cell.reset().map_err(no_log)?;
-    let config = cell.dir.join("cell.toml");
+    let config = cell.eval_config();
+    let learn_config = cell.learn_config();
     let key = &cell.key;
     let row = |phase, track: &Path, metrics| Row {
         variant: key.variant.clone(),
@@ -36,7 +37,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
         track: &key.learn_track,
         sim_seconds: key.learn_sim_seconds,
         out: cell.dir.join("learn"),
-        config: &config,
+        config: &learn_config,
         checkpoint: None,
         rule: false,
         namespace: format!("{}r0", cell.namespace),

@@ -110,36 +110,7 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
     heldout::ensure(&heldout, &spec.heldout, &scene)?;
 
     let outcomes = pool::run(&cells, todo, done, args.jobs, &heldout, &shutdown);
-    let mut records: Vec<Option<CellRecord>> = Vec::with_capacity(cells.len());
-    let mut failures: Vec<Option<Failure>> = Vec::with_capacity(cells.len());
-    for s in states {
-        let (r, f) = match s {
-            State::Done(r) => (Some(r), None),
-            State::Failed(f) => (None, Some(f)),
-            State::Todo => (None, None),
-        };
-        records.push(r);
-        failures.push(f);
-    }
-    for (i, out) in outcomes {
-        match out {
-            // As a later invocation will read it (JSON floats may differ in the last bit).
-            Ok(_) => {
-                let r = mtanet_files::read_json(&cells[i].record_path())?;
-                (records[i], failures[i]) = (Some(r), None)
-            }
-            // A run stopped by our own SIGTERM is not a failure: the cell runs next time.
-            Err(_) if shutdown.requested() => failures[i] = None,
-            Err(e) => {
-                let f = Failure {
-                    error: format!("{:#}", e.error),
-                    log: e.log,
-                };
-                mtanet_files::write_json(&cells[i].failure_path(), &f)?;
-                failures[i] = Some(f);
-            }
-        }
-    }
+    let (mut records, failures) = gather(&cells, states, outcomes, &shutdown)?;
     for (cell, record) in cells.iter().zip(records.iter_mut()) {
         let Some(record) = record.as_mut() else {
             continue;
@@ -210,4 +181,45 @@ fn namespace_prefix(given: Option<String>) -> anyhow::Result<String> {
         Some(p) => bail!("--namespace {p:?}: use at most 24 letters, digits, '-' or '_'"),
         None => Ok(mtanet_launch::stack::unique_namespace("exp")),
     }
+}
+
+/// Each cell's record or failure: as found on disk, updated by what this invocation ran (a
+/// failure written to `failed.json`, a finished cell read back from its `cell.json`).
+fn gather(
+    cells: &[matrix::Cell],
+    states: Vec<State>,
+    outcomes: Vec<(usize, pool::Outcome)>,
+    shutdown: &Shutdown,
+) -> anyhow::Result<(Vec<Option<CellRecord>>, Vec<Option<Failure>>)> {
+    let mut records: Vec<Option<CellRecord>> = Vec::with_capacity(cells.len());
+    let mut failures: Vec<Option<Failure>> = Vec::with_capacity(cells.len());
+    for s in states {
+        let (r, f) = match s {
+            State::Done(r) => (Some(r), None),
+            State::Failed(f) => (None, Some(f)),
+            State::Todo => (None, None),
+        };
+        records.push(r);
+        failures.push(f);
+    }
+    for (i, out) in outcomes {
+        match out {
+            // As a later invocation will read it (JSON floats may differ in the last bit).
+            Ok(_) => {
+                let r = mtanet_files::read_json(&cells[i].record_path())?;
+                (records[i], failures[i]) = (Some(r), None)
+            }
+            // A run stopped by our own SIGTERM is not a failure: the cell runs next time.
+            Err(_) if shutdown.requested() => failures[i] = None,
+            Err(e) => {
+                let f = Failure {
+                    error: format!("{:#}", e.error),
+                    log: e.log,
+                };
+                mtanet_files::write_json(&cells[i].failure_path(), &f)?;
+                failures[i] = Some(f);
+            }
+        }
+    }
+    Ok((records, failures))
 }

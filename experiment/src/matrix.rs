@@ -52,6 +52,8 @@ pub struct CellKey {
     pub seed: u64,
     pub learn_track: PathBuf,
     pub learn_sim_seconds: f64,
+    #[serde(default)]
+    pub learn_also_tracks: Vec<PathBuf>,
     pub eval_tracks: Vec<PathBuf>,
     pub eval_sim_seconds: f64,
     pub heldout: Heldout,
@@ -126,6 +128,7 @@ impl Cell {
                 seed,
                 learn_track: spec.learn_track.clone(),
                 learn_sim_seconds: spec.learn_sim_seconds,
+                learn_also_tracks: spec.learn_also_tracks.clone(),
                 eval_tracks: spec.eval_tracks.clone(),
                 eval_sim_seconds: spec.eval_sim_seconds,
                 heldout: spec.heldout.clone(),
@@ -176,14 +179,47 @@ impl Cell {
             std::fs::remove_dir_all(&self.dir)?;
         }
         std::fs::create_dir_all(&self.dir)?;
-        mtanet_files::write_bytes(&self.dir.join("cell.toml"), self.key.config.as_bytes())?;
+        // Evaluation drives its one track; the learning also drives `learn_also_tracks`.
+        let mut eval = self.config.clone();
+        if let Some(toml::Value::Table(sim)) = eval.get_mut("simulator") {
+            sim.remove("also_tracks");
+        }
+        mtanet_files::write_bytes(&self.eval_config(), toml::to_string(&eval)?.as_bytes())?;
+        let mut learn = self.config.clone();
+        let mut tracks: Vec<toml::Value> = learn
+            .get("simulator")
+            .and_then(|s| s.get("also_tracks"))
+            .and_then(|t| t.as_array().cloned())
+            .unwrap_or_default();
+        let more = self.key.learn_also_tracks.iter();
+        tracks.extend(more.map(|t| toml::Value::String(t.display().to_string())));
+        let sim = learn
+            .entry("simulator")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        if let toml::Value::Table(sim) = sim {
+            sim.insert("also_tracks".into(), toml::Value::Array(tracks));
+        }
+        mtanet_files::write_bytes(&self.learn_config(), toml::to_string(&learn)?.as_bytes())?;
         Ok(())
+    }
+
+    /// The stack config the evaluation runs use (no `also_tracks`).
+    pub fn eval_config(&self) -> PathBuf {
+        self.dir.join("cell.toml")
+    }
+
+    /// The stack config the learn run uses (`also_tracks` with the spec's `learn_also_tracks`).
+    pub fn learn_config(&self) -> PathBuf {
+        self.dir.join("learn.toml")
     }
 }
 
 fn differences(a: &CellKey, b: &CellKey) -> String {
     let mut d = Vec::new();
-    if a.learn_track != b.learn_track || a.learn_sim_seconds != b.learn_sim_seconds {
+    if a.learn_track != b.learn_track
+        || a.learn_sim_seconds != b.learn_sim_seconds
+        || a.learn_also_tracks != b.learn_also_tracks
+    {
         d.push("learn track or seconds");
     }
     if a.eval_tracks != b.eval_tracks || a.eval_sim_seconds != b.eval_sim_seconds {
@@ -278,5 +314,29 @@ mod tests {
         .unwrap();
         let e = changed.state().err().expect("another config").to_string();
         assert!(e.contains("stack config"), "{e}");
+    }
+
+    /// The learn run drives the variant's and the spec's extra tracks; the evaluation runs drive
+    /// their one track only.
+    #[test]
+    fn only_the_learn_run_drives_the_extra_tracks() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut s = spec();
+        s.learn_also_tracks = vec!["hairpins:1".into()];
+        let variant: toml::Table =
+            toml::from_str("[simulator]\nalso_tracks = [\"generated:7\"]\nlog_every_s = 2.0\n")
+                .unwrap();
+        let cells = cells(&s, dir.path(), &[("a".into(), variant)], "t").unwrap();
+        cells[0].reset().unwrap();
+        let read = |p: PathBuf| -> toml::Table {
+            toml::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+        };
+        let (learn, eval) = (read(cells[0].learn_config()), read(cells[0].eval_config()));
+        let tracks = learn["simulator"]["also_tracks"].as_array().unwrap();
+        let tracks: Vec<&str> = tracks.iter().map(|t| t.as_str().unwrap()).collect();
+        assert_eq!(tracks, ["generated:7", "hairpins:1"]);
+        assert!(eval["simulator"].get("also_tracks").is_none(), "{eval:?}");
+        assert_eq!(eval["simulator"]["log_every_s"].as_float(), Some(2.0));
+        assert_eq!(learn["simulator"]["log_every_s"].as_float(), Some(2.0));
     }
 }

@@ -35,6 +35,10 @@ pub struct Spec {
     /// Learnt from scratch, in lockstep, for `learn_sim_seconds`.
     pub learn_track: PathBuf,
     pub learn_sim_seconds: f64,
+    /// More tracks the learning drives in turn after `learn_track` (its `[simulator]
+    /// also_tracks`, each for `switch_track_after_s`); the trainer probes on `learn_track`.
+    #[serde(default)]
+    pub learn_also_tracks: Vec<PathBuf>,
     /// Driven by the learnt checkpoint with no learning, each for `eval_sim_seconds`.
     #[serde(default)]
     pub eval_tracks: Vec<PathBuf>,
@@ -194,6 +198,11 @@ impl Spec {
             }
         }
         let tracks = std::iter::once(("learn_track", &self.learn_track))
+            .chain(
+                self.learn_also_tracks
+                    .iter()
+                    .map(|t| ("learn_also_tracks", t)),
+            )
             .chain(self.eval_tracks.iter().map(|t| ("eval_tracks", t)))
             .chain(std::iter::once(("heldout.track", &self.heldout.track)))
             .chain(self.analysis.track.iter().map(|t| ("analysis.track", t)));
@@ -206,10 +215,14 @@ impl Spec {
             })?;
         }
         let mut slugs = BTreeSet::new();
+        let learnt: BTreeSet<String> = std::iter::once(&self.learn_track)
+            .chain(&self.learn_also_tracks)
+            .map(|t| track_slug(t))
+            .collect();
         for t in &self.eval_tracks {
-            if track_slug(t) == track_slug(&self.learn_track) {
+            if learnt.contains(&track_slug(t)) {
                 let m = format!(
-                    "has {} (or a track of its name), the learn track: evaluation is on tracks \
+                    "has {} (or a track of its name), a learn track: evaluation is on tracks \
                      the learning never saw",
                     t.display()
                 );
@@ -337,6 +350,20 @@ eval_sim_seconds = 10
             (
                 BASE.replace("generated:102", "generated:101") + &two("a", "b"),
                 "two tracks",
+            ),
+            (
+                BASE.replace(
+                    "learn_sim",
+                    "learn_also_tracks = [\"generated:102\"]\nlearn_sim",
+                ) + &two("a", "b"),
+                "a learn track",
+            ),
+            (
+                BASE.replace(
+                    "learn_sim",
+                    "learn_also_tracks = [\"no/such.csv\"]\nlearn_sim",
+                ) + &two("a", "b"),
+                "learn_also_tracks",
             ),
             (BASE.to_string(), "variant"),
         ];

@@ -92,13 +92,14 @@ pub fn summary_md(path: &Path, x: &Inputs) -> anyhow::Result<()> {
     }
     let _ = writeln!(
         md,
-        "- learn: from scratch in lockstep on `{}` for {} simulated s\n\
+        "- learn: from scratch in lockstep on `{}`{} for {} simulated s\n\
          - eval: the learnt checkpoint with no learning on {} for {} simulated s each\n\
          - seeds {:?}, each setting {}\n\
          - base config `{}`; variants {}\n\
          - held-out drive: `{}`, {} s, seed {} (`heldout.npz`)\n\
          - cells: {} finished, {} failed, of {}; `results.csv` has one row per run",
         s.learn_track.display(),
+        also_tracks(s),
         s.learn_sim_seconds,
         if tracks.is_empty() {
             "no track".into()
@@ -267,6 +268,22 @@ fn made_with(records: &[CellRecord]) -> String {
         .join("; ")
 }
 
+/// ", then `a`, `b` in turn" for a learning that also drives other tracks.
+fn also_tracks(s: &Spec) -> String {
+    if s.learn_also_tracks.is_empty() {
+        return String::new();
+    }
+    let t: Vec<String> = s
+        .learn_also_tracks
+        .iter()
+        .map(|t| format!("`{}`", t.display()))
+        .collect();
+    format!(
+        " then {} in turn (`[simulator] switch_track_after_s` each)",
+        t.join(", ")
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -297,6 +314,7 @@ mod tests {
                 seed,
                 learn_track: "oval".into(),
                 learn_sim_seconds: 1.0,
+                learn_also_tracks: vec![],
                 eval_tracks: vec![],
                 eval_sim_seconds: 1.0,
                 heldout: Default::default(),

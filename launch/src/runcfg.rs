@@ -118,6 +118,22 @@ pub fn check(file: &ConfigFile) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Lets the trainer resume from `original` (its checked copy `probed`): the copy becomes the
+/// latest checkpoint in `ck_dir`, and Adam's moments saved beside the original, if any, come
+/// with it (a resumed learner that restarts its moments from zero takes oversized first steps).
+pub fn start_trainer_from(original: &Path, probed: &Path, ck_dir: &Path) -> anyhow::Result<()> {
+    use mtanet_models::train::optimizer_path;
+    std::fs::create_dir_all(ck_dir).with_context(|| format!("creating {}", ck_dir.display()))?;
+    let latest = ck_dir.join("latest.safetensors");
+    std::fs::copy(probed, &latest).with_context(|| format!("writing {}", latest.display()))?;
+    let moments = optimizer_path(original);
+    if moments.exists() {
+        let to = optimizer_path(&latest);
+        std::fs::copy(&moments, &to).with_context(|| format!("writing {}", to.display()))?;
+    }
+    Ok(())
+}
+
 /// Checks the starting checkpoint and writes `start.safetensors` in the run folder with a
 /// probe recorded (the predictor trusts weights for control only with a passing probe). A
 /// checkpoint that carries the probe of its own training keeps it: the probe measures the model,

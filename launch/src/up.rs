@@ -130,16 +130,8 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         Some(ck) => Some(runcfg::probed_copy(ck, &file, &track, &out)?),
         None => None,
     };
-    if let (Some(ck), false) = (&start_ck, args.no_learning) {
-        std::fs::create_dir_all(&ck_dir)?;
-        std::fs::copy(ck, ck_dir.join("latest.safetensors"))?;
-        let opt = mtanet_models::train::optimizer_path(args.checkpoint.as_ref().expect("given"));
-        if opt.exists() {
-            std::fs::copy(
-                &opt,
-                mtanet_models::train::optimizer_path(&ck_dir.join("latest.safetensors")),
-            )?;
-        }
+    if let (Some(ck), Some(original), false) = (&start_ck, &args.checkpoint, args.no_learning) {
+        runcfg::start_trainer_from(original, ck, &ck_dir)?;
     }
     let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
     let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
@@ -160,7 +152,6 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
 
     let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
-    let mut order = Vec::new();
     let run = crate::plan::Run {
         config: Some(config.clone()),
         namespace: Some(ipc.namespace.clone()),
@@ -177,20 +168,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             weight_blobs: args.record_weight_blobs,
         }),
     };
-    for launch in crate::plan::plan(&stack, &run) {
-        sup.add(&launch.spec, launch.args)?;
-        order.push(launch.spec.name);
-    }
-    // In order, each one ready (READY=1: ports open, loop running) before the next, as the
-    // Type=notify units do: the simulator comes last and its first step finds its peers answering.
-    for name in &order {
-        let pid = sup.start(name)?;
-        eprintln!("[up] started {name} (pid {pid})");
-        if let Err(e) = sup.await_ready(name, Duration::from_secs(60)) {
-            sup.stop_all(Duration::from_secs(20));
-            return Err(e);
-        }
-    }
+    start_in_order(&mut sup, &stack, &run)?;
 
     let target = (args.sim_seconds > 0.0).then_some(args.sim_seconds);
     let outcome = watch(&ipc, &mut sup, &shutdown, &out.join("progress.csv"), target);
@@ -206,23 +184,62 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             None => failed.push(format!("{name} did not stop within 60 s")),
         }
     }
-    mtanet_files::write_json(
-        &out.join("supervisor.json"),
-        &mtanet_summaries::supervisor::SupervisorSummary {
-            restarts: sup.restarts(),
-        },
-    )?;
+    conclude(&sup, &file, &track, &out, &ck_dir, args.checkpoint.as_deref())?;
+    outcome?;
+    if !failed.is_empty() {
+        bail!("{}", failed.join("; "));
+    }
+    Ok(())
+}
+
+/// Starts the plan's processes in order, each one ready (READY=1: ports open, loop running)
+/// before the next, as the Type=notify units do: the simulator comes last and its first step
+/// finds its peers answering. A process that does not come up stops the others.
+fn start_in_order(
+    sup: &mut Supervisor,
+    stack: &StackConfig,
+    run: &crate::plan::Run,
+) -> anyhow::Result<()> {
+    let mut order = Vec::new();
+    for launch in crate::plan::plan(stack, run) {
+        sup.add(&launch.spec, launch.args)?;
+        order.push(launch.spec.name);
+    }
+    for name in &order {
+        let pid = sup.start(name)?;
+        eprintln!("[up] started {name} (pid {pid})");
+        if let Err(e) = sup.await_ready(name, Duration::from_secs(60)) {
+            sup.stop_all(Duration::from_secs(20));
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
+/// After the stack stopped: the supervisor's restarts, the learnt (or given) model in the run
+/// folder, the rule alone on the same track for the same time, `report.json` and its summary.
+fn conclude(
+    sup: &Supervisor,
+    file: &ConfigFile,
+    track: &Path,
+    out: &Path,
+    ck_dir: &Path,
+    checkpoint: Option<&Path>,
+) -> anyhow::Result<()> {
+    let restarts = sup.restarts();
+    let summary = mtanet_summaries::supervisor::SupervisorSummary { restarts };
+    mtanet_files::write_json(&out.join("supervisor.json"), &summary)?;
     let latest = ck_dir.join("latest.safetensors");
     if latest.exists() {
         std::fs::copy(&latest, out.join("model.safetensors"))?;
-    } else if let Some(ck) = &args.checkpoint {
+    } else if let Some(ck) = checkpoint {
         std::fs::copy(ck, out.join("model.safetensors"))?;
     }
     eprintln!("[up] the reactive rule alone on the same track for the same time (the baseline)");
-    if let Err(e) = crate::baseline::write_rule_alone(&file, &track, &out) {
+    if let Err(e) = crate::baseline::write_rule_alone(file, track, out) {
         eprintln!("[up] no rule-alone baseline: {e:#}");
     }
-    let r = mtanet_report::write(&out, &mtanet_eval::figure::strip_on_track)?;
+    let r = mtanet_report::write(out, &mtanet_eval::figure::strip_on_track)?;
     eprintln!(
         "[up] {} steps ({:.0} s simulated) in {:.0} s; laps {} (active inference {}); control {}; report {}",
         r.steps,
@@ -234,10 +251,6 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         out.join("report.json").display()
     );
     print_versus_rule(&r);
-    outcome?;
-    if !failed.is_empty() {
-        bail!("{}", failed.join("; "));
-    }
     Ok(())
 }
 

@@ -77,33 +77,8 @@ struct Metrics<'a> {
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     // One intra-op thread: see mtanet_models' crate docs (2 shared cores, tiny ops).
     tch::set_num_threads(1);
-    let mut run: RunConfig = match &args.config {
-        Some(p) => mtanet_files::read_toml(p)?,
-        None => RunConfig::default(),
-    };
-    if let Some(s) = args.seed {
-        run.train.seed = s;
-    }
-    let data = load_all(&args.data, "training")?;
-    let (train, held) = if !args.eval.is_empty() {
-        (data, load_all(&args.eval, "eval")?)
-    } else if data.len() >= 2 {
-        data.split(run.train.eval_fraction, run.train.seed)
-    } else {
-        bail!("one training sequence cannot be split into train and eval; pass --eval");
-    };
-    adopt_data_shape(&mut run.model, &train, &held)?;
-    run.model.validate().context("model configuration")?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    let (run, train, held) = prepare(&args)?;
     let out = |name: &str| args.out.join(name);
-    mtanet_files::write_bytes(
-        &out("config.toml"),
-        toml::to_string(&run)
-            .context("serialising config")?
-            .as_bytes(),
-    )?;
-
     let mut trainer = Trainer::f_new(&run.model, &run.train).context("building the model")?;
     let parameters: i64 = trainer
         .vs
@@ -111,89 +86,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         .iter()
         .map(|t| t.numel() as i64)
         .sum();
-    let batches = (train.len() as u64).div_ceil(run.train.batch_size.max(1) as u64);
-    let windows = (train.steps() as u64).div_ceil(run.train.bptt.max(1) as u64);
-    let planned = (batches * windows * args.epochs).min(args.max_updates.unwrap_or(u64::MAX));
-    tracing::info!(
-        parameters,
-        train = ?train.images.size(),
-        eval = ?held.images.size(),
-        planned_updates = planned,
-        "training"
-    );
-    let bar = ProgressBar::new(planned).with_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} updates, eta {eta} {msg}",
-        )
-        .context("progress template")?,
-    );
-    let mut log = std::io::BufWriter::new(std::fs::File::create(out("train_log.csv"))?);
-    writeln!(log, "update,loss,grad_norm,clipped")?;
-    let mut epochs_log = std::fs::File::create(out("epochs.jsonl"))?;
     let start = Instant::now();
-    let (mut last_loss, mut epochs_done) = (None, 0);
-    let mut io_error = None;
-    'epochs: for epoch in 0..args.epochs {
-        let mut stop = false;
-        let mut running = (0.0, 0u32);
-        trainer.fit_epoch(
-            &train,
-            run.train.seed.wrapping_mul(1_000_003).wrapping_add(epoch),
-            |r| match r {
-                Ok(s) => {
-                    running = (running.0 + s.loss, running.1 + 1);
-                    last_loss = Some(s.loss);
-                    if let Err(e) =
-                        writeln!(log, "{},{},{},{}", s.step, s.loss, s.grad_norm, s.clipped)
-                    {
-                        io_error.get_or_insert(e);
-                    }
-                    bar.inc(1);
-                    if running.1 == 20 {
-                        bar.set_message(format!("loss {:.5}", running.0 / 20.0));
-                        running = (0.0, 0);
-                    }
-                    stop |= args.max_updates.is_some_and(|m| s.step >= m);
-                    if stop {
-                        ControlFlow::Break(())
-                    } else {
-                        ControlFlow::Continue(())
-                    }
-                }
-                Err(e) => {
-                    bar.suspend(|| tracing::warn!("{e}"));
-                    ControlFlow::Continue(())
-                }
-            },
-        )?;
-        if let Some(e) = io_error.take() {
-            return Err(e).context("writing train_log.csv");
-        }
-        epochs_done = epoch + 1;
-        let m = evaluate(&trainer.model, &held, 64, None).context("evaluating")?;
-        let line = serde_json::json!({"epoch": epochs_done, "updates": trainer.step(), "loss": last_loss,
-            "mse": m.mse, "copy_last_mse": m.copy_last_mse, "mse_over_copy_last": m.mse_over_copy_last,
-            "wall_time_s": start.elapsed().as_secs_f64()});
-        writeln!(epochs_log, "{line}")?;
-        // Through tracing (stderr) so that logs to a file keep them; the bar hides off a tty.
-        bar.suspend(|| {
-            tracing::info!(
-                epoch = epochs_done,
-                updates = trainer.step(),
-                mse = m.mse,
-                mse_over_copy_last = m.mse_over_copy_last,
-                "held-out"
-            )
-        });
-        trainer
-            .save_checkpoint(&out("checkpoint.safetensors"), last_loss)
-            .context("saving checkpoint")?;
-        if stop {
-            break 'epochs;
-        }
-    }
-    log.flush()?;
-    bar.finish_with_message("done");
+    let (last_loss, epochs_done) = fit(&args, &run, &mut trainer, &train, &held, parameters)?;
     let wall_time_s = start.elapsed().as_secs_f64();
     trainer
         .save_checkpoint(&out("model.safetensors"), last_loss)
@@ -235,6 +129,130 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         "training finished"
     );
     Ok(())
+}
+
+/// The run's config (with the data's shape), the training and held-out sequences, and the
+/// output folder with the config as used.
+fn prepare(args: &TrainArgs) -> anyhow::Result<(RunConfig, Dataset, Dataset)> {
+    let mut run: RunConfig = match &args.config {
+        Some(p) => mtanet_files::read_toml(p)?,
+        None => RunConfig::default(),
+    };
+    if let Some(s) = args.seed {
+        run.train.seed = s;
+    }
+    let data = load_all(&args.data, "training")?;
+    let (train, held) = if !args.eval.is_empty() {
+        (data, load_all(&args.eval, "eval")?)
+    } else if data.len() >= 2 {
+        data.split(run.train.eval_fraction, run.train.seed)
+    } else {
+        bail!("one training sequence cannot be split into train and eval; pass --eval");
+    };
+    adopt_data_shape(&mut run.model, &train, &held)?;
+    run.model.validate().context("model configuration")?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let text = toml::to_string(&run).context("serialising config")?;
+    mtanet_files::write_bytes(&args.out.join("config.toml"), text.as_bytes())?;
+    Ok((run, train, held))
+}
+
+/// The epochs, with a progress bar: every update in `train_log.csv`, the held-out error after
+/// each epoch in `epochs.jsonl` and a checkpoint. The last loss and the epochs done.
+fn fit(
+    args: &TrainArgs,
+    run: &RunConfig,
+    trainer: &mut Trainer,
+    train: &Dataset,
+    held: &Dataset,
+    parameters: i64,
+) -> anyhow::Result<(Option<f64>, u64)> {
+    let out = |name: &str| args.out.join(name);
+    let batches = (train.len() as u64).div_ceil(run.train.batch_size.max(1) as u64);
+    let windows = (train.steps() as u64).div_ceil(run.train.bptt.max(1) as u64);
+    let planned = (batches * windows * args.epochs).min(args.max_updates.unwrap_or(u64::MAX));
+    tracing::info!(
+        parameters,
+        train = ?train.images.size(),
+        eval = ?held.images.size(),
+        planned_updates = planned,
+        "training"
+    );
+    let bar = ProgressBar::new(planned).with_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} updates, eta {eta} {msg}",
+        )
+        .context("progress template")?,
+    );
+    let mut log = std::io::BufWriter::new(std::fs::File::create(out("train_log.csv"))?);
+    writeln!(log, "update,loss,grad_norm,clipped")?;
+    let mut epochs_log = std::fs::File::create(out("epochs.jsonl"))?;
+    let start = Instant::now();
+    let (mut last_loss, mut epochs_done) = (None, 0);
+    let mut io_error = None;
+    for epoch in 0..args.epochs {
+        let mut stop = false;
+        let mut running = (0.0, 0u32);
+        trainer.fit_epoch(
+            train,
+            run.train.seed.wrapping_mul(1_000_003).wrapping_add(epoch),
+            |r| match r {
+                Ok(s) => {
+                    running = (running.0 + s.loss, running.1 + 1);
+                    last_loss = Some(s.loss);
+                    if let Err(e) =
+                        writeln!(log, "{},{},{},{}", s.step, s.loss, s.grad_norm, s.clipped)
+                    {
+                        io_error.get_or_insert(e);
+                    }
+                    bar.inc(1);
+                    if running.1 == 20 {
+                        bar.set_message(format!("loss {:.5}", running.0 / 20.0));
+                        running = (0.0, 0);
+                    }
+                    stop |= args.max_updates.is_some_and(|m| s.step >= m);
+                    if stop {
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
+                }
+                Err(e) => {
+                    bar.suspend(|| tracing::warn!("{e}"));
+                    ControlFlow::Continue(())
+                }
+            },
+        )?;
+        if let Some(e) = io_error.take() {
+            return Err(e).context("writing train_log.csv");
+        }
+        epochs_done = epoch + 1;
+        let m = evaluate(&trainer.model, held, 64, None).context("evaluating")?;
+        let line = serde_json::json!({"epoch": epochs_done, "updates": trainer.step(), "loss": last_loss,
+            "mse": m.mse, "copy_last_mse": m.copy_last_mse, "mse_over_copy_last": m.mse_over_copy_last,
+            "wall_time_s": start.elapsed().as_secs_f64()});
+        writeln!(epochs_log, "{line}")?;
+        // Through tracing (stderr) so that logs to a file keep them; the bar hides off a tty.
+        bar.suspend(|| {
+            tracing::info!(
+                epoch = epochs_done,
+                updates = trainer.step(),
+                mse = m.mse,
+                mse_over_copy_last = m.mse_over_copy_last,
+                "held-out"
+            )
+        });
+        trainer
+            .save_checkpoint(&out("checkpoint.safetensors"), last_loss)
+            .context("saving checkpoint")?;
+        if stop {
+            break;
+        }
+    }
+    log.flush()?;
+    bar.finish_with_message("done");
+    Ok((last_loss, epochs_done))
 }
 
 /// Loads and concatenates data sets, naming the file that fails.

@@ -50,10 +50,18 @@ pub struct Stepped {
     pub laps: u32,
     /// The car was put back at the start (a new episode begins), and why.
     pub reset: Option<Verdict>,
+    /// The car moved on to the start of this track (its index; a new episode begins).
+    pub switched_to: Option<usize>,
 }
 
 pub struct Drive<'w> {
-    world: &'w mut World,
+    /// The tracks driven in turn; `current` is the one the car is on.
+    worlds: &'w mut [World],
+    current: usize,
+    /// Steps on one track before moving to the next (0: never).
+    switch_after_steps: u64,
+    /// Steps since the car came onto the current track.
+    on_track_steps: u64,
     referee: Referee,
     step: u64,
     episode: u32,
@@ -65,7 +73,20 @@ pub struct Drive<'w> {
 
 impl<'w> Drive<'w> {
     pub fn new(world: &'w mut World, rule: ResetRule) -> Self {
-        let period = world.config().control_period_s;
+        Self::round(std::slice::from_mut(world), rule, 0.0)
+    }
+
+    /// A drive that starts on `worlds[0]` and, after `switch_after_s` simulated seconds on a
+    /// track, moves the car to the start of the next (round to the first) as a new episode. A
+    /// lost car is put back at the start of the track it is on. 0 (or one world) never moves.
+    pub fn round(worlds: &'w mut [World], rule: ResetRule, switch_after_s: f64) -> Self {
+        assert!(!worlds.is_empty(), "a drive needs a world");
+        let period = worlds[0].config().control_period_s;
+        let switch_after_steps = if worlds.len() > 1 && switch_after_s > 0.0 {
+            (switch_after_s / period).round().max(1.0) as u64
+        } else {
+            0
+        };
         Self {
             referee: Referee::new(
                 rule.after_lost_s,
@@ -73,7 +94,10 @@ impl<'w> Drive<'w> {
                 rule.lost_lateral_m,
                 rule.reverse_m,
             ),
-            world,
+            worlds,
+            current: 0,
+            switch_after_steps,
+            on_track_steps: 0,
             step: 0,
             episode: 0,
             laps_before: 0,
@@ -84,13 +108,14 @@ impl<'w> Drive<'w> {
 
     /// The sensors now, and the command that led here.
     pub fn sense(&mut self) -> Frame {
-        let sensors = self.world.sense();
+        let world = &mut self.worlds[self.current];
+        let sensors = world.sense();
         self.sensed = Some(sensors.truth);
         Frame {
             step: self.step,
             episode: self.episode,
-            time_s: self.world.time_s(),
-            applied: self.world.command().map(|v| v as f32),
+            time_s: world.time_s(),
+            applied: world.command().map(|v| v as f32),
             sensors,
         }
     }
@@ -99,28 +124,37 @@ impl<'w> Drive<'w> {
     /// judges the car: a lost car (or one driving the wrong way) is put back at the start as a
     /// new episode.
     pub fn step(&mut self, command: [f32; 2], source: CommandSource) -> Stepped {
-        let from = self.sensed.take().unwrap_or_else(|| self.world.truth());
-        let accepted = self.world.step(command);
+        let world = &mut self.worlds[self.current];
+        let from = self.sensed.take().unwrap_or_else(|| world.truth());
+        let accepted = world.step(command);
         self.step += 1;
-        let laps = self.laps_before + self.world.truth().laps;
-        let verdict = self
-            .referee
-            .judge(&self.world.truth(), self.world.progress_m());
+        self.on_track_steps += 1;
+        let laps = self.laps_before + world.truth().laps;
+        let verdict = self.referee.judge(&world.truth(), world.progress_m());
         // The line's curvature where the sensor bar was, over 10 cm either side.
-        let curvature = self.world.track().curvature_at(from.track_s, 0.1);
+        let curvature = world.track().curvature_at(from.track_s, 0.1);
         self.score.record(&from, curvature, source, laps);
-        let reset = (verdict != Verdict::Fine).then(|| {
+        let reset = (verdict != Verdict::Fine).then_some(verdict);
+        let switch = reset.is_none()
+            && self.switch_after_steps > 0
+            && self.on_track_steps >= self.switch_after_steps;
+        let switched_to = switch.then(|| (self.current + 1) % self.worlds.len());
+        if reset.is_some() || switch {
             self.score.end_episode();
             self.laps_before = laps;
-            self.world.reset();
+            if let Some(next) = switched_to {
+                self.current = next;
+                self.on_track_steps = 0;
+            }
+            self.worlds[self.current].reset();
             self.referee.reset();
             self.episode += 1;
-            verdict
-        });
+        }
         Stepped {
             accepted,
             laps,
             reset,
+            switched_to,
         }
     }
 
@@ -138,11 +172,22 @@ impl<'w> Drive<'w> {
         self.episode
     }
 
+    /// The world of the track the car is on.
     pub fn world(&self) -> &World {
-        self.world
+        &self.worlds[self.current]
     }
 
     pub fn world_mut(&mut self) -> &mut World {
-        self.world
+        &mut self.worlds[self.current]
+    }
+
+    /// Index of the track the car is on (in the order given to [`Drive::round`]).
+    pub fn track_index(&self) -> usize {
+        self.current
+    }
+
+    /// Commands refused as not finite, over every track.
+    pub fn rejected_commands(&self) -> u64 {
+        self.worlds.iter().map(World::rejected_commands).sum()
     }
 }

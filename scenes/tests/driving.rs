@@ -280,3 +280,53 @@ fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes()
     assert_eq!(score.steps_of(teacher), car.steps());
     assert_eq!(score.laps_under_active_inference(), 0);
 }
+
+/// A drive round several tracks: after the set time on one the car is at the start of the next
+/// (a new episode, time 0, the next track under its bar), then back on the first; laps and the
+/// score run on over the switches.
+#[test]
+fn a_drive_round_several_tracks_moves_to_the_next_after_the_set_time() {
+    use mtanet_scenes::{CommandSource, Drive, ResetRule};
+    let scene = |t: &str| SceneConfig::default().with_track(shipped_track(t));
+    let mut worlds = vec![
+        World::new(&scene("oval")).unwrap(),
+        World::new(&scene("square")).unwrap(),
+    ];
+    let lengths: Vec<f64> = worlds.iter().map(|w| w.track().length_m()).collect();
+    assert!((lengths[0] - lengths[1]).abs() > 0.01, "{lengths:?}");
+    let mut t = Teacher::new(&TeacherConfig::default());
+    let mut car = Drive::round(&mut worlds, ResetRule::default(), 1.0);
+    let per_track = (1.0 / CONTROL_PERIOD_S).round() as u64;
+    let mut switches = Vec::new();
+    while switches.len() < 2 {
+        let f = car.sense();
+        let stepped = car.step(t.act(&f.sensors), CommandSource::Teacher);
+        assert!(
+            stepped.reset.is_none(),
+            "the teacher is not lost: {stepped:?}"
+        );
+        if let Some(next) = stepped.switched_to {
+            t.reset();
+            switches.push((car.steps(), next, car.episode()));
+            let f = car.sense();
+            assert!(
+                f.time_s < 1e-9,
+                "a new track starts at time 0: {}",
+                f.time_s
+            );
+            assert_eq!(car.world().track().length_m(), lengths[next]);
+            assert!(
+                f.sensors.truth.lateral_m.abs() < 0.005,
+                "at the next start, on its line"
+            );
+        }
+        assert!(car.steps() < 10 * per_track, "no switch in 10 s");
+    }
+    assert_eq!(
+        switches,
+        vec![(per_track, 1, 1), (2 * per_track, 0, 2)],
+        "(step, track, episode) of each switch"
+    );
+    assert_eq!(car.track_index(), 0);
+    assert_eq!(car.score().steps(), car.steps());
+}

@@ -3,8 +3,11 @@
 //! back) and its wake-up mechanism (event notification; the peer blocks in a WaitSet like the
 //! predictor, this side waits on its listener like the simulator), paced at the control period.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use anyhow::Context;
 use iceoryx2::prelude::*;
 use mtanet_ipc::latency::LatencyStats;
 use mtanet_ipc::node::{IpcConfig, create_node, create_waitset};
@@ -90,7 +93,7 @@ pub fn measure(
     ns: &str,
     period: Duration,
     duration: Duration,
-    stop: &std::sync::atomic::AtomicBool,
+    stop: &AtomicBool,
     priority: Option<i32>,
 ) -> anyhow::Result<(LatencyStats, u64)> {
     realtime(priority);
@@ -114,7 +117,7 @@ pub fn measure(
     let mut lost = 0;
     let start = Instant::now();
     let mut k = 0u64;
-    while start.elapsed() < duration && !stop.load(std::sync::atomic::Ordering::Relaxed) {
+    while start.elapsed() < duration && !stop.load(Ordering::Relaxed) {
         // Stamped last before sending, as the simulator stamps its observations.
         let mut stamp0 = 0;
         ping.send_with(|o| {
@@ -138,4 +141,90 @@ pub fn measure(
         std::thread::sleep(next.saturating_duration_since(Instant::now()));
     }
     Ok((stats, lost))
+}
+
+/// The transport floor through a soak: the peer process, the ping-pong alone on the machine
+/// before the stack starts, then on a thread beside the stack until [`Floor::finish`].
+pub struct Floor {
+    peer: Kill,
+    idle: LatencyStats,
+    stop: Arc<AtomicBool>,
+    beside: std::thread::JoinHandle<anyhow::Result<(LatencyStats, u64)>>,
+}
+
+/// The peer process, stopped (SIGTERM, reaped) when dropped.
+struct Kill(std::process::Child);
+
+impl Drop for Kill {
+    fn drop(&mut self) {
+        // SAFETY: kill(2) on our own child, not yet reaped.
+        unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
+        let _ = self.0.wait();
+    }
+}
+
+/// The ping-pong's priorities: the pinging side the simulator's, the peer the predictor's.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Priorities {
+    pub simulator: Option<i32>,
+    pub predictor: Option<i32>,
+}
+
+impl Floor {
+    /// Starts the peer (its log in `out`), measures `alone`, then keeps measuring beside
+    /// whatever runs next.
+    pub fn start(
+        ns: &str,
+        out: &std::path::Path,
+        alone: Duration,
+        prio: Priorities,
+    ) -> anyhow::Result<Floor> {
+        let peer = std::process::Command::new(mtanet_launch::stack::bin_dir().join("mta"))
+            .args(["pingpong-peer", "--namespace", ns])
+            .args(prio.predictor.map(|p| format!("--priority={p}")))
+            .stderr(std::fs::File::create(out.join("pingpong-peer.log"))?)
+            .spawn()
+            .context("starting the ping-pong peer")?;
+        let peer = Kill(peer);
+        eprintln!(
+            "[soak] raw iceoryx2 ping-pong alone for {:.0} s",
+            alone.as_secs_f64()
+        );
+        let period = Duration::from_secs_f64(mtanet_ipc::CONTROL_PERIOD_S);
+        // On a thread of its own: it takes the simulator's real-time class, which the processes
+        // started from the calling thread would otherwise inherit.
+        let idle = std::thread::scope(|s| {
+            s.spawn(|| {
+                let never = AtomicBool::new(false);
+                measure(ns, period, alone, &never, prio.simulator)
+            })
+            .join()
+            .map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))
+        })??
+        .0;
+        let stop = Arc::new(AtomicBool::new(false));
+        let beside = {
+            let (ns, stop) = (ns.to_string(), Arc::clone(&stop));
+            let day = Duration::from_secs(86_400);
+            std::thread::spawn(move || measure(&ns, period, day, &stop, prio.simulator))
+        };
+        Ok(Floor {
+            peer,
+            idle,
+            stop,
+            beside,
+        })
+    }
+
+    /// Stops measuring and the peer: the floor alone, the floor beside the stack, and the round
+    /// trips lost beside it.
+    pub fn finish(self) -> anyhow::Result<(LatencyStats, LatencyStats, u64)> {
+        self.stop.store(true, Ordering::Relaxed);
+        let (beside, lost) = self
+            .beside
+            .join()
+            .map_err(|_| anyhow::anyhow!("the ping-pong thread panicked"))??;
+        drop(self.peer);
+        Ok((self.idle, beside, lost))
+    }
 }

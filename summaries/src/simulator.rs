@@ -26,11 +26,14 @@ pub struct Summary {
     pub replay_chunks_sent: u64,
     /// iceoryx2 nodes of crashed peers this simulator removed (after repeated missed commands).
     pub dead_nodes_cleaned: u64,
-    /// Times the car was lost (or drove the wrong way) and was put back at the start
-    /// (episodes - 1).
+    /// Times the car was lost (or drove the wrong way) and was put back at the start.
     pub resets: u64,
     /// Of those, the times it drove the wrong way round.
     pub wrong_way_resets: u64,
+    /// Times the car moved on to the next of several tracks (`simulator.also_tracks`). Episodes
+    /// are 1 + resets + track_switches.
+    #[serde(default)]
+    pub track_switches: u64,
     /// Observation published -> its command received, as seen by the simulator.
     pub round_trip: LatencySummary,
     /// Wall time of one step's work (sensors, publishing, waiting for the command, physics);

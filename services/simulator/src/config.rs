@@ -67,6 +67,13 @@ pub struct SimulatorConfig {
     pub pace_updates_per_1000_steps: f64,
     /// `--trace FILE` writes every n-th step's position and driver.
     pub trace_every_steps: u64,
+    /// More tracks to drive in turn after `[simulator.scene] track` (CSV or `generated:N`), each
+    /// with that scene's physics: after `switch_track_after_s` simulated seconds on one, the car
+    /// moves to the start of the next (and round to the first) as a new episode, so a learner
+    /// sees more kinds of bend than one track has. The trainer's probe stays on the first track.
+    pub also_tracks: Vec<std::path::PathBuf>,
+    /// Simulated seconds on each track before moving to the next (with `also_tracks`).
+    pub switch_track_after_s: f64,
     /// `[simulator.scene]`: track and physics.
     pub scene: SceneConfig,
     /// `[simulator.teacher]`: the teacher driver.
@@ -90,6 +97,8 @@ impl Default for SimulatorConfig {
             reverse_reset_m: 0.15,
             pace_updates_per_1000_steps: 160.0,
             trace_every_steps: 5,
+            also_tracks: Vec::new(),
+            switch_track_after_s: 60.0,
             scene: SceneConfig::default(),
             teacher: TeacherConfig::default(),
         }
@@ -97,6 +106,15 @@ impl Default for SimulatorConfig {
 }
 
 impl SimulatorConfig {
+    /// The scenes driven in turn: `[simulator.scene]`, then one per `also_tracks` entry.
+    pub fn scenes(&self) -> Vec<SceneConfig> {
+        let more = self.also_tracks.iter().map(|t| SceneConfig {
+            track: t.clone(),
+            ..self.scene.clone()
+        });
+        std::iter::once(self.scene.clone()).chain(more).collect()
+    }
+
     /// When the car is put back at the start.
     pub fn reset_rule(&self) -> ResetRule {
         ResetRule {

@@ -106,11 +106,16 @@ fn main() -> anyhow::Result<()> {
             "--seed has no effect while the teacher's noise is 0: add --noise STD (rad/s) for varied data"
         );
     }
+    if cfg.switch_track_after_s <= 0.0 && !cfg.also_tracks.is_empty() {
+        anyhow::bail!(
+            "simulator.switch_track_after_s = {}: give a positive time on each track to drive also_tracks",
+            cfg.switch_track_after_s
+        );
+    }
     let (scene, teacher_cfg) = (&cfg.scene, &cfg.teacher);
-    let mut world = World::new(scene)
-        .with_context(|| format!("loading the scene for track {}", scene.track.display()))?;
+    let mut worlds = load_worlds(&cfg)?;
     let mut teacher = Teacher::new(teacher_cfg);
-    tracing::info!(track = %scene.track.display(), length_m = world.track().length_m(), "world ready");
+    let world = &mut worlds[0];
     if let Some(path) = &args.write_mjcf {
         // Written only after MuJoCo compiled it (World::new): what is on disk loads.
         mtanet_files::write_bytes(path, world.mjcf().as_bytes())?;
@@ -125,7 +130,7 @@ fn main() -> anyhow::Result<()> {
             seq_len: args.seq_len as usize,
             seed: teacher_cfg.seed,
         };
-        let rep = standalone::run(&mut world, &mut teacher, &run, &shutdown)?;
+        let rep = standalone::run(world, &mut teacher, &run, &shutdown)?;
         tracing::info!(
             laps = rep.laps,
             lateral_mean_m = rep.lateral_error_m.mean,
@@ -152,7 +157,7 @@ fn main() -> anyhow::Result<()> {
     let summary = service::run(
         &node,
         &ports,
-        &mut world,
+        &mut worlds,
         &mut teacher,
         &cfg,
         &shutdown,
@@ -173,4 +178,25 @@ fn main() -> anyhow::Result<()> {
         "simulator stopped"
     );
     args.common.write_summary(&summary)
+}
+
+/// The worlds of the tracks driven in turn; an error names the track and the config key.
+fn load_worlds(cfg: &SimulatorConfig) -> anyhow::Result<Vec<World>> {
+    let scenes = cfg.scenes();
+    let mut worlds = Vec::with_capacity(scenes.len());
+    for (i, scene) in scenes.iter().enumerate() {
+        let key = match i {
+            0 => "simulator.scene.track".to_string(),
+            _ => format!("simulator.also_tracks[{}]", i - 1),
+        };
+        let world = World::new(scene).with_context(|| {
+            format!(
+                "loading the scene for track {} ({key})",
+                scene.track.display()
+            )
+        })?;
+        tracing::info!(track = %scene.track.display(), length_m = world.track().length_m(), "world ready");
+        worlds.push(world);
+    }
+    Ok(worlds)
 }

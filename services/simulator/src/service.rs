@@ -16,7 +16,7 @@ use mtanet_ipc::wait::{self, Waited, Wake};
 use mtanet_ipc::{
     Command, CommandSource, Observation, ProcessStats, ReplayChunk, TrainerStatus, names, stamp,
 };
-use mtanet_scenes::{Drive, Frame, Score, Teacher, Verdict, World};
+use mtanet_scenes::{Drive, Frame, Score, Stepped, Teacher, Verdict, World};
 
 use crate::answer::Answers;
 use crate::chunk::ChunkBuilder;
@@ -53,13 +53,13 @@ impl Ports {
 pub fn run(
     node: &Node<ipc::Service>,
     ports: &Ports,
-    world: &mut World,
+    worlds: &mut [World],
     teacher: &mut Teacher,
     cfg: &SimulatorConfig,
     shutdown: &Shutdown,
     mut trace: Option<&mut Trace>,
 ) -> anyhow::Result<Summary> {
-    let period = world.config().control_period_s;
+    let period = worlds[0].config().control_period_s;
     let lockstep = cfg.mode == Mode::Lockstep;
     let mut watchdog = Watchdog::from_env();
     if lockstep {
@@ -74,7 +74,7 @@ pub fn run(
     // Who decided the command in force (it led to the next frame).
     let mut applied_source = CommandSource::Teacher;
     let mut last_log = Instant::now();
-    let mut car = Drive::new(world, cfg.reset_rule());
+    let mut car = Drive::round(worlds, cfg.reset_rule(), cfg.switch_track_after_s);
     while !shutdown.requested() && (cfg.max_steps == 0 || car.steps() < cfg.max_steps) {
         let step = car.steps();
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
@@ -114,19 +114,11 @@ pub fn run(
                 "rejected a non-finite wheel command; keeping the last good one"
             );
         }
-        if let Some(verdict) = stepped.reset {
-            tracing::warn!(
-                step,
-                episode = frame.episode,
-                lateral_m = frame.sensors.truth.lateral_m,
-                "{}: back to the start, new episode",
-                verdict_words(verdict)
-            );
+        if stepped.reset.is_some() || stepped.switched_to.is_some() {
+            new_episode(&car, &stepped, &frame, &mut summary);
             teacher.reset();
             applied_source = CommandSource::Teacher; // the reset's zero command
-            chunk.discard(); // a training sequence never spans a reset
-            summary.resets += 1;
-            summary.wrong_way_resets += u64::from(verdict == Verdict::WrongWay);
+            chunk.discard(); // a training sequence never spans two episodes
         }
         // The step's own work (in real time the wait for the next tick comes after).
         let work = t0.elapsed();
@@ -162,7 +154,58 @@ pub fn run(
     let score = car.score().clone();
     summary.steps = steps;
     summary.replay_chunks_sent = chunk.sent;
-    summary.rejected_commands = world.rejected_commands();
+    summary.rejected_commands = car.rejected_commands();
+    summary.pace = pace.summary(steps);
+    summary.wall_seconds = clock.elapsed().as_secs_f64();
+    finish_summary(&mut summary, &score, &answers, &step_time, &clock, period);
+    // The run's last figures, before lingering: what a watcher waits for.
+    let fill = |s: &mut ProcessStats| fill_stats(s, &score, &summary);
+    ports
+        .stats
+        .borrow_mut()
+        .publish(steps, || step_time.summary(), fill)?;
+    if cfg.replay {
+        linger_for_replay(ports, cfg, chunk.sent, shutdown, &mut watchdog)?;
+    }
+    Ok(summary)
+}
+
+/// Logs and counts the end of an episode: the car was put back at the start of its track, or
+/// moved on to the next track.
+fn new_episode(car: &Drive, stepped: &Stepped, frame: &Frame, summary: &mut Summary) {
+    let step = frame.step;
+    if let Some(verdict) = stepped.reset {
+        tracing::warn!(
+            step,
+            episode = frame.episode,
+            lateral_m = frame.sensors.truth.lateral_m,
+            "{}: back to the start, new episode",
+            verdict_words(verdict)
+        );
+        summary.resets += 1;
+        summary.wrong_way_resets += u64::from(verdict == Verdict::WrongWay);
+    }
+    if let Some(next) = stepped.switched_to {
+        let track = car.world().config().track.display().to_string();
+        tracing::info!(
+            step,
+            track,
+            index = next,
+            "next track: its start, new episode"
+        );
+        summary.track_switches += 1;
+    }
+}
+
+/// The run's figures from the drive's score and the loop's latency records.
+fn finish_summary(
+    summary: &mut Summary,
+    score: &Score,
+    answers: &Answers,
+    step_time: &LatencyStats,
+    clock: &Clock,
+    period: f64,
+) {
     summary.round_trip = answers.round_trip.summary();
     summary.round_trip_hist = answers.round_trip.histogram();
     summary.cmd_to_sim = answers.cmd_to_sim.summary();
@@ -174,19 +217,8 @@ pub fn run(
     summary.laps = score.laps();
     summary.lateral_error_m = score.lateral();
     summary.control = score.control();
-    summary.pace = pace.summary(steps);
-    summary.sim_seconds = steps as f64 * period; // world time restarts with each episode
-    summary.wall_seconds = clock.elapsed().as_secs_f64();
-    // The run's last figures, before lingering: what a watcher waits for.
-    let fill = |s: &mut ProcessStats| fill_stats(s, &score, &summary);
-    ports
-        .stats
-        .borrow_mut()
-        .publish(steps, || step_time.summary(), fill)?;
-    if cfg.replay {
-        linger_for_replay(ports, cfg, chunk.sent, shutdown, &mut watchdog)?;
-    }
-    Ok(summary)
+    // World time restarts with each episode.
+    summary.sim_seconds = summary.steps as f64 * period;
 }
 
 fn fill_stats(s: &mut ProcessStats, score: &Score, summary: &Summary) {
