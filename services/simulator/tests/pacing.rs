@@ -59,7 +59,7 @@ fn the_simulator_waits_for_the_trainers_updates_and_runs_free_without_it() {
         run(
             &node,
             &ports,
-            &mut world,
+            std::slice::from_mut(&mut world),
             &mut teacher,
             &cfg,
             &Shutdown::manual(),

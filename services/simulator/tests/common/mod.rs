@@ -51,7 +51,7 @@ pub fn drive_with(
         let summary = run(
             &node,
             &ports,
-            &mut world,
+            std::slice::from_mut(&mut world),
             &mut teacher,
             &cfg,
             &Shutdown::manual(),
