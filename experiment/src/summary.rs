@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::matrix::{CellRecord, Failure, MadeWith, Phase, Row};
+use crate::matrix::{CellRecord, Failure, MadeWith, Phase};
 use crate::metrics::NAMES;
 use crate::spec::Spec;
 use crate::stats::{Spread, bootstrap_median_difference};
@@ -28,35 +28,30 @@ pub fn seed_values(records: &[CellRecord], variant: &str, phase: Phase, m: usize
 }
 
 pub fn results_csv(path: &Path, records: &[CellRecord]) -> anyhow::Result<()> {
-    let mut out = String::from("variant,seed,phase,track");
-    for (name, _) in NAMES {
-        out.push(',');
-        out.push_str(name);
-    }
-    out.push('\n');
+    // Quoted where a field needs it (a track file named `a,b.csv`).
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let names = NAMES.iter().map(|(name, _)| *name);
+    w.write_record(
+        ["variant", "seed", "phase", "track"]
+            .into_iter()
+            .chain(names),
+    )?;
     for row in records.iter().flat_map(|r| &r.rows) {
-        line(&mut out, row);
+        let key = [
+            row.variant.clone(),
+            row.seed.to_string(),
+            row.phase.name().to_string(),
+            row.track.clone(),
+        ];
+        let values = row.metrics.values().into_iter();
+        w.write_record(
+            key.into_iter()
+                .chain(values.map(|v| v.map_or(String::new(), |v| v.to_string()))),
+        )?;
     }
-    mtanet_files::write_bytes(path, out.as_bytes())?;
+    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+    mtanet_files::write_bytes(path, &bytes)?;
     Ok(())
-}
-
-fn line(out: &mut String, row: &Row) {
-    let _ = write!(
-        out,
-        "{},{},{},{}",
-        row.variant,
-        row.seed,
-        row.phase.name(),
-        row.track
-    );
-    for v in row.metrics.values() {
-        out.push(',');
-        if let Some(v) = v {
-            let _ = write!(out, "{v}");
-        }
-    }
-    out.push('\n');
 }
 
 fn num(v: f64) -> String {
@@ -350,6 +345,15 @@ mod tests {
             text.contains("\na,1,eval,g0,,,"),
             "a missing value is an empty field: {text}"
         );
+        // A track whose name holds a comma stays one field.
+        let mut odd = record("c", 0, 1.0, &[]);
+        odd.rows[0].track = "tracks/a,b.csv".into();
+        results_csv(&csv, &[odd]).unwrap();
+        let mut r = csv::Reader::from_path(&csv).unwrap();
+        let headers = r.headers().unwrap().len();
+        let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+        assert_eq!(rows[0].len(), headers);
+        assert_eq!(&rows[0][3], "tracks/a,b.csv");
     }
 
     #[test]

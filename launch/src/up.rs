@@ -184,7 +184,14 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
             None => failed.push(format!("{name} did not stop within 60 s")),
         }
     }
-    conclude(&sup, &file, &track, &out, &ck_dir, args.checkpoint.as_deref())?;
+    conclude(
+        &sup,
+        &file,
+        &track,
+        &out,
+        &ck_dir,
+        args.checkpoint.as_deref(),
+    )?;
     outcome?;
     if !failed.is_empty() {
         bail!("{}", failed.join("; "));

@@ -118,7 +118,10 @@ fn a_model_whose_error_overflows_mid_run_hands_the_wheel_to_the_rule() {
         sender.send(header, bytes).unwrap();
     };
     let ai = CommandSource::ActiveInference as u32;
-    send(1, &std::fs::read(here().join("data/oval_lockstep.safetensors")).unwrap());
+    send(
+        1,
+        &std::fs::read(here().join("data/oval_lockstep.safetensors")).unwrap(),
+    );
     stats.wait_for("predictor", Duration::from_secs(180), |s| {
         s.model_version == 1 && s.driver == ai
     });
@@ -127,13 +130,19 @@ fn a_model_whose_error_overflows_mid_run_hands_the_wheel_to_the_rule() {
         s.model_version == 2 && s.driver != ai
     });
     // Some steps later it still does not drive: the model stays distrusted.
-    stats.wait_for("predictor", Duration::from_secs(60), |s| s.count > after.count + 500);
+    stats.wait_for("predictor", Duration::from_secs(60), |s| {
+        s.count > after.count + 500
+    });
     let last = stats.wait_for("predictor", Duration::from_secs(5), |_| true);
     assert_ne!(last.driver, ai, "{last:?}");
     for p in [&sim, &predictor] {
         p.signal(libc::SIGTERM);
     }
-    assert!(sim.wait(Duration::from_secs(30)).success(), "{}", sim.log_tail());
+    assert!(
+        sim.wait(Duration::from_secs(30)).success(),
+        "{}",
+        sim.log_tail()
+    );
     assert!(
         predictor.wait(Duration::from_secs(30)).success(),
         "{}",
@@ -141,7 +150,10 @@ fn a_model_whose_error_overflows_mid_run_hands_the_wheel_to_the_rule() {
     );
     let s: mtanet_summaries::simulator::Summary =
         mtanet_system_tests::read_json(&dir.path().join("mta-simulator.json"));
-    assert_eq!(s.rejected_commands, 0, "a non-finite command reached the simulator");
+    assert_eq!(
+        s.rejected_commands, 0,
+        "a non-finite command reached the simulator"
+    );
     let p: mtanet_summaries::predictor::Summary =
         mtanet_system_tests::read_json(&dir.path().join("mta-predictor.json"));
     assert!(p.control.switches_to_reactive >= 1, "{:?}", p.control);
