@@ -282,6 +282,7 @@ fn also_tracks(s: &Spec) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::matrix::Row;
     use crate::matrix::CellKey;
     use crate::metrics::Metrics;
 
