@@ -4,6 +4,7 @@
 //! finished before the analysis existed get theirs on the next invocation); its figures join
 //! the cell's learn row.
 
+use mtanet_summaries::run_folder;
 use std::path::Path;
 
 use anyhow::Context;
@@ -38,7 +39,7 @@ pub fn ensure(
                 cell.label(),
                 track.display()
             );
-            let model = cell.dir.join("learn").join("model.safetensors");
+            let model = cell.dir.join("learn").join(run_folder::MODEL);
             mtanet_analysis::analyze_checkpoint(&model, &scene.clone().with_track(track), &o, &out)
                 .with_context(|| format!("analysing {}", model.display()))?
         }

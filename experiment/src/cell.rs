@@ -2,6 +2,7 @@
 //! checkpoint on the held-out drive, drive each evaluation track from it with no learning and
 //! with the reactive rule alone (the baseline), then `cell.json` (atomically, last: only a whole cell counts as done).
 
+use mtanet_summaries::run_folder;
 use std::path::Path;
 use std::time::Instant;
 
@@ -50,7 +51,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
     };
     let metrics = in_run(&learn, learn_run(&learn, heldout, live, slot))?;
     let mut rows = vec![row(Phase::Learn, &key.learn_track, metrics)];
-    let model = learn.out.join("model.safetensors");
+    let model = learn.out.join(run_folder::MODEL);
     let n = key.eval_tracks.len();
     for (k, track) in key.eval_tracks.iter().enumerate() {
         // The learnt driver, then the rule alone on the same track for the same time.
@@ -84,7 +85,7 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
 
 fn learn_run(run: &Run, heldout: &Path, live: &Live, slot: usize) -> anyhow::Result<Metrics> {
     up(run, live, slot)?;
-    let model = run.out.join("model.safetensors");
+    let model = run.out.join(run_folder::MODEL);
     anyhow::ensure!(
         model.exists(),
         "the learn run left no model.safetensors: the trainer made no update in {} simulated s \

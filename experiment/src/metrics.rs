@@ -2,6 +2,7 @@
 //! simulator's `trace.csv` (`step,episode,x,y,lateral_m,source`, every n-th step), for the
 //! takeover time. The held-out next-frame error is the cell's (`heldout.rs`).
 
+use mtanet_summaries::run_folder;
 use std::path::Path;
 
 use anyhow::Context;
@@ -228,11 +229,11 @@ impl Metrics {
 
     /// A run folder's metrics (without the held-out error).
     pub fn of_run(dir: &Path) -> anyhow::Result<Self> {
-        let r: Report = mtanet_files::read_json(&dir.join("report.json"))?;
-        let trace = std::fs::read_to_string(dir.join("trace.csv"))
-            .with_context(|| format!("reading {}", dir.join("trace.csv").display()))?;
+        let r: Report = mtanet_files::read_json(&dir.join(run_folder::REPORT))?;
+        let trace = std::fs::read_to_string(dir.join(run_folder::TRACE))
+            .with_context(|| format!("reading {}", dir.join(run_folder::TRACE).display()))?;
         let samples = parse_trace(&trace)
-            .with_context(|| format!("parsing {}", dir.join("trace.csv").display()))?;
+            .with_context(|| format!("parsing {}", dir.join(run_folder::TRACE).display()))?;
         Ok(Self {
             takeover_s: takeover_s(&samples, r.steps, TAKEOVER_WINDOW_S, TAKEOVER_SHARE),
             laps: Some(r.laps.completed as f64),

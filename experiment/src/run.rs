@@ -3,6 +3,7 @@
 //! terminal reaches only `mta experiment`, which passes one SIGTERM on (a second signal would
 //! make `mta up` exit at once and leave its stack behind).
 
+use mtanet_summaries::run_folder;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
@@ -115,7 +116,7 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
     if !status.success() {
         bail!("mta up failed ({status}); see {}", log.display());
     }
-    let report: mtanet_report::Report = mtanet_files::read_json(&run.out.join("report.json"))?;
+    let report: mtanet_report::Report = mtanet_files::read_json(&run.out.join(run_folder::REPORT))?;
     let want = (run.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
     if report.steps < want {
         bail!(
@@ -145,7 +146,7 @@ fn wait_unreaped(pid: u32) -> anyhow::Result<()> {
 /// Simulated seconds a run has reached, from its `progress.csv` (`wall_s,step,sim_s,...`,
 /// once a second); 0 before the first row.
 pub fn sim_seconds_reached(dir: &Path) -> f64 {
-    std::fs::read_to_string(dir.join("progress.csv"))
+    std::fs::read_to_string(dir.join(run_folder::PROGRESS))
         .ok()
         .and_then(|t| {
             t.lines()

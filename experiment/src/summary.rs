@@ -282,8 +282,8 @@ fn also_tracks(s: &Spec) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::matrix::Row;
     use crate::matrix::CellKey;
+    use crate::matrix::Row;
     use crate::metrics::Metrics;
 
     fn record(variant: &str, seed: u64, learn_laps: f64, eval_laps: &[Option<f64>]) -> CellRecord {

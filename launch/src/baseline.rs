@@ -1,6 +1,7 @@
 //! The reactive rule alone on the run's track for the run's simulated time, in-process (no
 //! model, no exploration): the clean baseline `report.json` compares the run's driving with.
 
+use mtanet_summaries::run_folder;
 use std::path::Path;
 
 use mtanet_ipc::config::ConfigFile;
@@ -10,11 +11,12 @@ use mtanet_summaries::simulator::Summary as SimulatorSummary;
 /// Writes `rule_alone.json` in `out` for as many steps as the run's simulator made; nothing
 /// when the simulator left no summary (the report says why).
 pub fn write_rule_alone(file: &ConfigFile, track: &Path, out: &Path) -> anyhow::Result<()> {
-    let sim: SimulatorSummary = match mtanet_files::read_json(&out.join("mta-simulator.json")) {
-        Ok(s) => s,
-        Err(e) if e.is_not_found() => return Ok(()),
-        Err(e) => return Err(e.into()),
-    };
+    let sim: SimulatorSummary =
+        match mtanet_files::read_json(&out.join(run_folder::summary_of("mta-simulator"))) {
+            Ok(s) => s,
+            Err(e) if e.is_not_found() => return Ok(()),
+            Err(e) => return Err(e.into()),
+        };
     if sim.steps == 0 {
         return Ok(());
     }

@@ -1,6 +1,7 @@
 //! What `mta up` and `mta soak` share before they start a stack: the effective config in the run
 //! folder, and a starting checkpoint checked and probed on the run's track.
 
+use mtanet_summaries::run_folder;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
@@ -40,7 +41,7 @@ pub fn effective_config(
     let ck_dir = match trainer.get("checkpoint_dir").and_then(|v| v.as_str()) {
         Some(d) => PathBuf::from(d),
         None => {
-            let d = std::path::absolute(out.join("checkpoints"))?;
+            let d = std::path::absolute(out.join(run_folder::CHECKPOINTS))?;
             trainer.insert(
                 "checkpoint_dir".into(),
                 d.to_string_lossy().into_owned().into(),
@@ -64,7 +65,7 @@ pub fn effective_config(
     if rule_alone {
         rule_only(&mut table)?;
     }
-    let path = out.join("stack.toml");
+    let path = out.join(run_folder::STACK);
     mtanet_files::write_bytes(&path, toml::to_string(&table)?.as_bytes())?;
     check(&ConfigFile::load(Some(&path))?)?;
     Ok((path, ck_dir))
@@ -124,7 +125,7 @@ pub fn check(file: &ConfigFile) -> anyhow::Result<()> {
 pub fn start_trainer_from(original: &Path, probed: &Path, ck_dir: &Path) -> anyhow::Result<()> {
     use mtanet_models::train::optimizer_path;
     std::fs::create_dir_all(ck_dir).with_context(|| format!("creating {}", ck_dir.display()))?;
-    let latest = ck_dir.join("latest.safetensors");
+    let latest = ck_dir.join(run_folder::LATEST);
     std::fs::copy(probed, &latest).with_context(|| format!("writing {}", latest.display()))?;
     let moments = optimizer_path(original);
     if moments.exists() {
@@ -156,7 +157,7 @@ pub fn probed_copy(
             ck.display(),
             loaded.meta.step,
         );
-        let path = out.join("start.safetensors");
+        let path = out.join(run_folder::START);
         std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
         return Ok(path);
     }
@@ -178,7 +179,7 @@ pub fn probed_copy(
         .clone()
         .with_probe(Some((loaded.meta.step, probe.rank_correlation)));
     let (vs, _) = loaded.build()?;
-    let path = out.join("start.safetensors");
+    let path = out.join(run_folder::START);
     checkpoint::save(&path, &vs, &loaded.config, &loaded.meta)?;
     Ok(path)
 }

@@ -5,6 +5,7 @@
 //! (`stack.toml`), the car's trace, the learned checkpoint (`model.safetensors`) and the
 //! report (`report.json`, `lap_trace.png`, `latency.png`, `figure.png`; see `mta report`).
 
+use mtanet_summaries::run_folder;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -143,7 +144,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         checkpoint: args.checkpoint.clone(),
         config: args.config.clone(),
     };
-    mtanet_files::write_json(&out.join("run.json"), &info)?;
+    mtanet_files::write_json(&out.join(run_folder::RUN), &info)?;
     eprintln!(
         "[up] run folder {}; config {}",
         out.display(),
@@ -158,7 +159,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         summaries: Some(out.clone()),
         track: Some(track.clone()),
         checkpoint: start_ck.clone(),
-        trace: Some(out.join("trace.csv")),
+        trace: Some(out.join(run_folder::TRACE)),
         max_steps: (args.sim_seconds > 0.0)
             .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
         no_trainer: args.no_learning || args.rule,
@@ -171,7 +172,13 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     start_in_order(&mut sup, &stack, &run)?;
 
     let target = (args.sim_seconds > 0.0).then_some(args.sim_seconds);
-    let outcome = watch(&ipc, &mut sup, &shutdown, &out.join("progress.csv"), target);
+    let outcome = watch(
+        &ipc,
+        &mut sup,
+        &shutdown,
+        &out.join(run_folder::PROGRESS),
+        target,
+    );
     if let Some(line) = &outcome.as_ref().err() {
         eprintln!("\n[up] {line:#}");
     }
@@ -235,12 +242,12 @@ fn conclude(
 ) -> anyhow::Result<()> {
     let restarts = sup.restarts();
     let summary = mtanet_summaries::supervisor::SupervisorSummary { restarts };
-    mtanet_files::write_json(&out.join("supervisor.json"), &summary)?;
-    let latest = ck_dir.join("latest.safetensors");
+    mtanet_files::write_json(&out.join(run_folder::SUPERVISOR), &summary)?;
+    let latest = ck_dir.join(run_folder::LATEST);
     if latest.exists() {
-        std::fs::copy(&latest, out.join("model.safetensors"))?;
+        std::fs::copy(&latest, out.join(run_folder::MODEL))?;
     } else if let Some(ck) = checkpoint {
-        std::fs::copy(ck, out.join("model.safetensors"))?;
+        std::fs::copy(ck, out.join(run_folder::MODEL))?;
     }
     eprintln!("[up] the reactive rule alone on the same track for the same time (the baseline)");
     if let Err(e) = crate::baseline::write_rule_alone(file, track, out) {
@@ -255,7 +262,7 @@ fn conclude(
         r.laps.completed,
         r.laps.completed_under_active_inference,
         r.control,
-        out.join("report.json").display()
+        out.join(run_folder::REPORT).display()
     );
     print_versus_rule(&r);
     Ok(())

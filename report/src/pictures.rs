@@ -1,6 +1,7 @@
 //! The run's pictures from its trace and summaries: `lap_trace.png` (the car's path over the
 //! track, coloured by who drove) and the latency histograms (`latency.png`, `soak.png`).
 
+use mtanet_summaries::run_folder;
 use std::path::Path;
 
 use anyhow::Context;
@@ -21,7 +22,7 @@ const DRIVERS: [(&str, &str, Rgb); 5] = [
 
 /// The car's path over the track, coloured by who drove.
 pub(crate) fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(dir.join("trace.csv")).context("reading trace.csv")?;
+    let text = std::fs::read_to_string(dir.join(run_folder::TRACE)).context("reading trace.csv")?;
     let mut paths: Vec<Path2d> = DRIVERS
         .iter()
         .map(|&(_, name, colour)| Path2d {
@@ -55,10 +56,13 @@ pub(crate) fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
 /// `latency.png` from the simulator's and the predictor's summaries in `dir`; false without a
 /// simulator summary.
 pub fn latency_from_summaries(dir: &Path) -> anyhow::Result<bool> {
-    let Some(sim) = read_json::<SimulatorSummary>(&dir.join("mta-simulator.json"))? else {
+    let Some(sim) =
+        read_json::<SimulatorSummary>(&dir.join(run_folder::summary_of("mta-simulator")))?
+    else {
         return Ok(false);
     };
-    let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
+    let pred: Option<PredictorSummary> =
+        read_json(&dir.join(run_folder::summary_of("mta-predictor")))?;
     latency_from(dir, &sim, pred.as_ref())?;
     Ok(true)
 }

@@ -8,6 +8,7 @@
 //!
 //! `mta report` (the end of every `mta up`) draws them too; a missing input skips its picture.
 
+use mtanet_summaries::run_folder;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -98,7 +99,7 @@ struct Gate {
 
 impl Gate {
     fn of(dir: &Path) -> Self {
-        let table = mtanet_files::read_table(&dir.join("stack.toml")).ok();
+        let table = mtanet_files::read_table(&dir.join(run_folder::STACK)).ok();
         let get = |key: &str, default: f64| {
             (table.as_ref())
                 .and_then(|t| {
@@ -138,7 +139,7 @@ pub fn model_error(dir: &Path) -> anyhow::Result<bool> {
     let gate = Gate::of(dir);
     let probe_ref = format!("min_probe {}", gate.min_probe);
     let trust_ref = format!("trusted below {}", gate.trust_ratio);
-    let path = dir.join("progress.csv");
+    let path = dir.join(run_folder::PROGRESS);
     let Ok(text) = std::fs::read_to_string(&path) else {
         return Ok(false);
     };

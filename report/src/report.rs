@@ -9,6 +9,7 @@
 //!   [`FigureStrip`] the caller passes: the model is not this crate's);
 //! - `learning.png`, `model_error.png`: the learning curve and the live model's error (`mta plot`).
 
+use mtanet_summaries::run_folder;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -168,16 +169,18 @@ pub fn run(args: ReportArgs, figure: &FigureStrip) -> anyhow::Result<()> {
 /// Builds `report.json` and the pictures in `dir` (`figure.png` with `figure`); returns the
 /// report.
 pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
-    let info: RunInfo = read_json(&dir.join("run.json"))?.unwrap_or_default();
-    let sim: SimulatorSummary = read_json(&dir.join("mta-simulator.json"))?.with_context(|| {
-        format!(
-            "{} has no mta-simulator.json: the simulator did not finish",
-            dir.display()
-        )
-    })?;
-    let pred: Option<PredictorSummary> = read_json(&dir.join("mta-predictor.json"))?;
-    let tr: Option<TrainerSummary> = read_json(&dir.join("mta-trainer.json"))?;
-    let sup: Option<SupervisorSummary> = read_json(&dir.join("supervisor.json"))?;
+    let info: RunInfo = read_json(&dir.join(run_folder::RUN))?.unwrap_or_default();
+    let sim: SimulatorSummary = read_json(&dir.join(run_folder::summary_of("mta-simulator")))?
+        .with_context(|| {
+            format!(
+                "{} has no mta-simulator.json: the simulator did not finish",
+                dir.display()
+            )
+        })?;
+    let pred: Option<PredictorSummary> =
+        read_json(&dir.join(run_folder::summary_of("mta-predictor")))?;
+    let tr: Option<TrainerSummary> = read_json(&dir.join(run_folder::summary_of("mta-trainer")))?;
+    let sup: Option<SupervisorSummary> = read_json(&dir.join(run_folder::SUPERVISOR))?;
     let c = &sim.control;
     let lat = |k: &str| c.lateral_mean_m.get(k).copied();
     let mut latency = BTreeMap::new();
@@ -244,7 +247,7 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
         },
         restarts: sup.map(|s| s.restarts).unwrap_or_default(),
     };
-    mtanet_files::write_json(&dir.join("report.json"), &report)?;
+    mtanet_files::write_json(&dir.join(run_folder::REPORT), &report)?;
     if let Err(e) = pictures::lap_trace(dir, &info.track) {
         tracing::warn!("no lap trace picture: {e:#}");
     }
@@ -260,7 +263,7 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
             tracing::warn!("no {name}: {e:#}");
         }
     }
-    let model = dir.join("model.safetensors");
+    let model = dir.join(run_folder::MODEL);
     if model.exists()
         && let Err(e) = figure(&model, &info.track, &dir.join("figure.png"))
     {

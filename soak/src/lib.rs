@@ -11,6 +11,7 @@ pub mod pingpong;
 mod process;
 mod report;
 
+use mtanet_summaries::run_folder;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -104,9 +105,9 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         }
     }
     let summaries = Summaries {
-        sim: mtanet_files::read_json(&out.join("mta-simulator.json"))?,
-        pred: mtanet_files::read_json(&out.join("mta-predictor.json"))?,
-        trainer: mtanet_files::read_json(&out.join("mta-trainer.json"))?,
+        sim: mtanet_files::read_json(&out.join(run_folder::summary_of("mta-simulator")))?,
+        pred: mtanet_files::read_json(&out.join(run_folder::summary_of("mta-predictor")))?,
+        trainer: mtanet_files::read_json(&out.join(run_folder::summary_of("mta-trainer")))?,
     };
     let leftovers = (nodes(&soak.ns), leftover_shm(&soak.ns));
     remove_namespace_files(&soak.ns);
@@ -128,7 +129,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     };
     let (beside, pred, sim) = (watched.floor.1.histogram(), &summaries.pred, &summaries.sim);
     let report = report::soak_report(&summaries, watched, &names);
-    mtanet_files::write_json(&out.join("soak.json"), &report)?;
+    mtanet_files::write_json(&out.join(run_folder::SOAK), &report)?;
     mtanet_report::latency_picture(
         &out.join("soak.png"),
         &[
