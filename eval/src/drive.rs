@@ -143,6 +143,20 @@ where
         {
             break;
         }
+        // Progress, a tenth of the drive at a time (a drive of minutes prints nothing else).
+        let tenth = (cfg.max_steps / 10).max(1);
+        if car.steps() % tenth == 0 {
+            let sc = car.score();
+            tracing::info!(
+                "drove {} of {} steps ({:.0}%), {:.0} s wall; laps {} ({} by active inference)",
+                car.steps(),
+                cfg.max_steps,
+                100.0 * car.steps() as f64 / cfg.max_steps as f64,
+                wall.elapsed().as_secs_f64(),
+                sc.laps(),
+                sc.laps_under_active_inference()
+            );
+        }
     }
     let score = car.score();
     report.steps = score.steps();
