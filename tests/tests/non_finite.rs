@@ -95,7 +95,18 @@ fn a_model_whose_error_overflows_mid_run_hands_the_wheel_to_the_rule() {
 
     let dir = tempfile::tempdir().unwrap();
     let ns = unique_namespace("nf");
-    let run = run_in(&ns, dir.path());
+    // A bad but finite error would need this many model steps in a row to lose the wheel
+    // (hours): only the non-finite rule can hand it back within the test.
+    let config = dir.path().join("stack.toml");
+    std::fs::write(
+        &config,
+        "[predictor.active_inference]\ndistrust_after_steps = 1000000\n",
+    )
+    .unwrap();
+    let run = mtanet_system_tests::Run {
+        config: Some(config),
+        ..run_in(&ns, dir.path())
+    };
     let mut predictor = start("mta-predictor", &run, &[], dir.path());
     wait_for_alive(&ns, 1, Duration::from_secs(30));
     let mut sim = start("mta-simulator", &run, &["--mode", "lockstep"], dir.path());
