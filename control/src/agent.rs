@@ -244,7 +244,9 @@ impl Agent {
         match self.mode {
             Mode::ActiveInference => {
                 let w = self.cfg.reflex.apply(self.committed, t.line);
-                self.decided(w, Driver::ActiveInference, plan)
+                let mut d = self.decided(w, Driver::ActiveInference, plan);
+                d.ahead = self.ahead(t.step, model.frame_skip());
+                d
             }
             // Arming: the rule's command held for the segment the first plan starts from.
             Mode::Fallback if self.arming => self.decided(self.committed, Driver::Fallback, None),
@@ -271,6 +273,21 @@ impl Agent {
                 self.decided(w, d, None)
             }
         }
+    }
+
+    /// The segment under way and the spare segments after it, from the step it began at.
+    fn ahead(&self, step: u64, frame_skip: Option<usize>) -> Ahead {
+        let Some(skip) = frame_skip else {
+            return Ahead::default();
+        };
+        // `observe` counted this step already.
+        let begun = step.saturating_sub(self.ticks_in_segment.saturating_sub(1) as u64);
+        let rest = self.spare.iter().map(|d| d.wheels());
+        Ahead::new(
+            begun,
+            skip as u32,
+            std::iter::once(self.committed).chain(rest),
+        )
     }
 
     fn defer_submit(&mut self, restart: Option<Drive>) {
@@ -326,6 +343,7 @@ impl Agent {
             wheels,
             driver,
             plan,
+            ahead: Ahead::default(),
         }
     }
 

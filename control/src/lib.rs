@@ -23,11 +23,14 @@ pub mod reflex;
 pub mod worker;
 
 pub use agent::{
-    Agent, AgentConfig, AgentModel, AgentStats, Blind, Decision, Driver, Health, NoPlans, Tick,
+    Agent, AgentConfig, AgentModel, AgentStats, Ahead, Blind, Decision, Driver, Health, NoPlans,
+    Tick,
 };
 pub use cost::{Cost, CostConfig, Terms};
 pub use drive::{Drive, Wheels};
-pub use planner::{Imagination, Outcome, PlanStats, Planner, PlannerConfig, PlanningSummary};
+pub use planner::{
+    Imagination, MAX_HORIZON, Outcome, PlanStats, Planner, PlannerConfig, PlanningSummary,
+};
 pub use preference::{FrameShape, PreferenceLearner, PreferredLine};
 pub use reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
 pub use recovery::Recovery;

@@ -63,6 +63,9 @@ pub trait Imagination {
     }
 }
 
+/// The longest plan, in segments: the room a command has to carry it (`mtanet_ipc::PLAN_SEGMENTS`).
+pub const MAX_HORIZON: usize = 8;
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlannerConfig {
@@ -142,7 +145,11 @@ type Scored = Vec<(f32, usize, Terms)>;
 
 impl Planner {
     pub fn new(cfg: &PlannerConfig) -> anyhow::Result<Self> {
-        ensure!(cfg.horizon >= 1, "planner.horizon must be >= 1");
+        ensure!(
+            (1..=MAX_HORIZON).contains(&cfg.horizon),
+            "planner.horizon must be in 1..={MAX_HORIZON} (the plan a command carries), not {}",
+            cfg.horizon
+        );
         ensure!(cfg.samples >= 2, "planner.samples must be >= 2");
         ensure!(
             (1..=cfg.samples).contains(&cfg.elites),

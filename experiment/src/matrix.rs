@@ -196,7 +196,7 @@ impl Cell {
         let sim = learn
             .entry("simulator")
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        if let toml::Value::Table(sim) = sim {
+        if let (toml::Value::Table(sim), false) = (sim, tracks.is_empty()) {
             sim.insert("also_tracks".into(), toml::Value::Array(tracks));
         }
         mtanet_files::write_bytes(&self.learn_config(), toml::to_string(&learn)?.as_bytes())?;
@@ -338,5 +338,17 @@ mod tests {
         assert!(eval["simulator"].get("also_tracks").is_none(), "{eval:?}");
         assert_eq!(eval["simulator"]["log_every_s"].as_float(), Some(2.0));
         assert_eq!(learn["simulator"]["log_every_s"].as_float(), Some(2.0));
+
+        // Without extra tracks the learn config names none (not an empty list).
+        let plain = super::cells(
+            &spec(),
+            dir.path(),
+            &[("b".into(), toml::Table::new())],
+            "t",
+        )
+        .unwrap();
+        plain[0].reset().unwrap();
+        let learn = read(plain[0].learn_config());
+        assert!(learn["simulator"].get("also_tracks").is_none(), "{learn:?}");
     }
 }

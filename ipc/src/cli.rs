@@ -48,6 +48,13 @@ impl CommonArgs {
         Ok((cfg, ipc, shutdown))
     }
 
+    /// An error for a config value that parsed but makes no sense, naming the file and section.
+    pub fn invalid_config(&self, section: &str, e: impl std::fmt::Display) -> anyhow::Error {
+        let file =
+            (self.config.as_deref()).map_or("<defaults>".into(), |p| p.display().to_string());
+        anyhow::anyhow!("config file {file}: [{section}] {e}")
+    }
+
     /// Writes the run summary if `--summary` was given.
     pub fn write_summary(&self, summary: &impl Serialize) -> anyhow::Result<()> {
         if let Some(path) = &self.summary {

@@ -13,6 +13,7 @@ pub mod messages;
 pub mod names;
 pub mod node;
 pub mod ports;
+pub mod sched;
 pub mod shutdown;
 pub mod stack;
 pub mod stamp;

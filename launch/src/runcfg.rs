@@ -101,7 +101,8 @@ fn sub_table<'t>(table: &'t mut toml::Table, path: &[&str]) -> anyhow::Result<&'
 /// Every section, as the services will read it: a typo fails here, naming file and key.
 /// `mta experiment` checks each variant's merged config with it before anything runs.
 pub fn check(file: &ConfigFile) -> anyhow::Result<()> {
-    let _: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    sim.validate().map_err(|e| file.invalid("[simulator]", e))?;
     let predictor: mtanet_predictor::config::PredictorConfig = file.section("predictor")?;
     predictor
         .active_inference

@@ -78,7 +78,7 @@ fn unit(
         None => {
             let _ = writeln!(
                 u,
-                "# Normal scheduler, at its own niceness ([trainer] nice): after the planner."
+                "# Normal scheduler, at its own niceness ([trainer] nice; the trainer takes nice_beside_fifo\n# itself when its user may run SCHED_FIFO, as the 50 Hz path then does): after the planner."
             );
             let _ = writeln!(u, "CPUSchedulingPolicy=other");
             if let Some(n) = nice {

@@ -63,7 +63,7 @@ pub struct ReplaySummary {
     pub replay_chunks_sent: u64,
     pub commands_received: u64,
     /// Commands that had a recorded counterpart, and how many of those were identical (the
-    /// wheel velocities bit for bit, and who decided).
+    /// wheel velocities and the plan carried bit for bit, and who decided).
     pub compared: u64,
     pub identical: u64,
     /// Lockstep: observations whose command did not come within the timeout.
@@ -98,7 +98,8 @@ impl Comparison {
         };
         self.summary.compared += 1;
         let same = r.source == c.source
-            && r.wheel_velocity.map(f32::to_bits) == c.wheel_velocity.map(f32::to_bits);
+            && r.wheel_velocity.map(f32::to_bits) == c.wheel_velocity.map(f32::to_bits)
+            && same_plan(r, c);
         if same {
             self.summary.identical += 1;
         } else if self.summary.first_difference.is_none() {
@@ -109,6 +110,14 @@ impl Comparison {
             });
         }
     }
+}
+
+/// The plans two commands carry, bit for bit.
+fn same_plan(a: &Command, b: &Command) -> bool {
+    let bits = |c: &Command| c.plan.map(|w| w.map(f32::to_bits));
+    (a.plan_first_step, a.plan_segment_steps, a.plan_len)
+        == (b.plan_first_step, b.plan_segment_steps, b.plan_len)
+        && bits(a) == bits(b)
 }
 
 pub fn run(args: ReplayArgs) -> anyhow::Result<()> {

@@ -61,8 +61,12 @@ pub struct Report {
     pub prediction: Prediction,
     pub probe: Probe,
     pub latency: BTreeMap<String, LatencySummary>,
-    /// Steps whose command did not come within the simulator's wait (the fallback drove).
+    /// Steps whose command did not come within the simulator's wait and no plan covered (the
+    /// miss policy drove).
     pub missed_commands: u64,
+    /// Steps whose command did not come in time, driven by the plan the last command carried.
+    #[serde(default)]
+    pub plan_followed: u64,
     /// Steps whose work took longer than their 20 ms period.
     pub overruns: u64,
     pub trainer: TrainerFigures,
@@ -230,6 +234,7 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
         },
         latency,
         missed_commands: sim.missed_commands,
+        plan_followed: sim.plan_followed,
         overruns: sim.overruns,
         trainer: TrainerFigures {
             updates: tr.as_ref().map(|t| t.updates),

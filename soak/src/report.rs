@@ -71,6 +71,7 @@ pub fn soak_report(s: &Summaries, w: Watched, names: &[String]) -> SoakReport {
         latency,
         overruns: sim.overruns,
         missed_commands: sim.missed_commands,
+        plan_followed: sim.plan_followed,
         dropped_commands: pred.commands_sent.saturating_sub(sim.commands_received),
         replay: ReplayCounts {
             chunks_sent: sim.replay_chunks_sent,

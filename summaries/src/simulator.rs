@@ -17,6 +17,10 @@ pub struct Summary {
     /// Steps where a predictor was connected but its command did not come within the wait
     /// (`command_timeout_ms`, at most half a period in real time).
     pub missed_commands: u64,
+    /// Steps whose command did not come in time but which the plan of the last command
+    /// covered: the car followed that plan (not counted in `missed_commands`).
+    #[serde(default)]
+    pub plan_followed: u64,
     /// Commands that arrived for another step (late answers to earlier steps), dropped.
     pub stale_commands: u64,
     /// Non-finite commands rejected by the world.

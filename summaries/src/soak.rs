@@ -21,8 +21,12 @@ pub struct SoakReport {
     pub latency: BTreeMap<String, LatencySummary>,
     /// Steps whose work took longer than their 20 ms period.
     pub overruns: u64,
-    /// Steps whose command did not come within the simulator's wait (the fallback drove).
+    /// Steps whose command did not come within the simulator's wait and no plan covered (the
+    /// miss policy drove).
     pub missed_commands: u64,
+    /// Steps whose command did not come in time, driven by the plan the last command carried.
+    #[serde(default)]
+    pub plan_followed: u64,
     /// Commands the predictor sent that the simulator never took in.
     pub dropped_commands: u64,
     pub replay: ReplayCounts,

@@ -78,15 +78,27 @@ fn mta_up_names_the_users_file_and_leaves_no_run_folder() {
     let cases = [
         (
             "[trainer]\npublsh_every_updates = 10\n",
+            "[trainer]",
             "publsh_every_updates",
         ),
         (
             "[trainer]\npublish_every_updates = \"ten\"\n",
+            "[trainer]",
             "publish_every_updates",
         ),
-        ("trainer = 5\n", "must be a table"),
+        ("trainer = 5\n", "[trainer]", "must be a table"),
+        (
+            "[simulator]\nalso_tracks = [\"generated:3\", \"no/such.csv\"]\n",
+            "[simulator]",
+            "simulator.also_tracks[1]",
+        ),
+        (
+            "[simulator]\nalso_tracks = [\"generated:3\"]\nswitch_track_after_s = 0.0\n",
+            "[simulator]",
+            "switch_track_after_s",
+        ),
     ];
-    for (text, key) in cases {
+    for (text, section, key) in cases {
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("bad.toml");
         std::fs::write(&bad, text).unwrap();
@@ -103,7 +115,7 @@ fn mta_up_names_the_users_file_and_leaves_no_run_folder() {
             let err = String::from_utf8_lossy(&o.stderr);
             assert!(!o.status.success(), "{text}: started\n{err}");
             assert!(
-                err.contains("bad.toml") && err.contains("[trainer]") && err.contains(key),
+                err.contains("bad.toml") && err.contains(section) && err.contains(key),
                 "{text}: {err}"
             );
             assert!(!err.contains("stack.toml"), "{text}: names the copy: {err}");

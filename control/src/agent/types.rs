@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cost::CostConfig;
 use crate::drive::Wheels;
-use crate::planner::{Outcome, PlannerConfig};
+use crate::planner::{MAX_HORIZON, Outcome, PlannerConfig};
 use crate::worker::{PlanJob, PlanService};
 
 /// Counters for reports (a plain data type of `mtanet-summaries`).
@@ -118,7 +118,7 @@ impl AgentConfig {
             "predictor.active_inference.plan_budget must be in (0, 1] (a share of the segment), not {}",
             self.plan_budget
         );
-        Ok(())
+        crate::Planner::new(&self.planner).map(|_| ())
     }
 }
 
@@ -214,4 +214,42 @@ pub struct Decision {
     pub driver: Driver,
     /// The plan taken up at this step, if any (with its compute time).
     pub plan: Option<(Outcome, Duration)>,
+    /// What active inference plans to do from this step's segment on (empty otherwise).
+    pub ahead: Ahead,
+}
+
+/// The rest of the plan active inference drives by, from the segment of the step decided: the
+/// car can follow it while no command comes (a paused predictor).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Ahead {
+    /// The step this segment began at.
+    pub first_step: u64,
+    /// Control steps per segment (the model's frame skip).
+    pub segment_steps: u32,
+    len: usize,
+    segments: [Wheels; MAX_HORIZON],
+}
+
+impl Ahead {
+    /// Segments from `first_step` on (at most [`MAX_HORIZON`]; more are dropped).
+    pub fn new(
+        first_step: u64,
+        segment_steps: u32,
+        segments: impl IntoIterator<Item = Wheels>,
+    ) -> Self {
+        let mut a = Self {
+            first_step,
+            segment_steps,
+            ..Self::default()
+        };
+        for w in segments.into_iter().take(MAX_HORIZON) {
+            a.segments[a.len] = w;
+            a.len += 1;
+        }
+        a
+    }
+
+    pub fn segments(&self) -> &[Wheels] {
+        &self.segments[..self.len]
+    }
 }

@@ -7,7 +7,7 @@ mod replay;
 mod trainer_status;
 mod weights;
 
-pub use command::{Command, CommandSource};
+pub use command::{Command, CommandSource, PLAN_SEGMENTS};
 pub use observation::{GroundTruth, Observation};
 pub use process_stats::ProcessStats;
 pub use replay::ReplayChunk;

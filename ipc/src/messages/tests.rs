@@ -10,7 +10,7 @@ use super::*;
 fn sizes_and_alignment_are_pinned() {
     assert_eq!(size_of::<GroundTruth>(), 48);
     assert_eq!(size_of::<Observation>(), 8 * 3 + 96 * 4 + 8 + 8 + 8 + 48);
-    assert_eq!(size_of::<Command>(), 8 * 4 + 8 + 8 + 8);
+    assert_eq!(size_of::<Command>(), 8 * 4 + 8 + 8 + 8 + 8 + 8 + 8 * 8);
     assert_eq!(
         size_of::<ReplayChunk>(),
         8 * 3 + 8 + 20 * 96 * 4 + 20 * 2 * 4 + 24
@@ -41,6 +41,8 @@ fn field_offsets_are_pinned() {
     assert_eq!(core::mem::offset_of!(Observation, truth), 24 + 384 + 24);
     assert_eq!(core::mem::offset_of!(ReplayChunk, sources), 32 + 7680 + 160);
     assert_eq!(core::mem::offset_of!(Command, wheel_velocity), 32);
+    assert_eq!(core::mem::offset_of!(Command, plan_first_step), 56);
+    assert_eq!(core::mem::offset_of!(Command, plan), 72);
     assert_eq!(core::mem::offset_of!(ReplayChunk, images), 32);
 }
 
@@ -62,11 +64,29 @@ fn type_names_are_stable_and_distinct() {
         [
             "mtanet::Observation/v2",
             "mtanet::GroundTruth/v1",
-            "mtanet::Command/v2",
+            "mtanet::Command/v3",
             "mtanet::ReplayChunk/v2",
             "mtanet::WeightsHeader/v3",
             "mtanet::TrainerStatus/v2",
         ]
+    );
+}
+
+#[test]
+fn a_command_gives_its_plan_for_the_steps_it_covers_only() {
+    let mut c: Command = bytemuck::Zeroable::zeroed();
+    assert_eq!(c.planned_at(0), None, "no plan");
+    c.set_plan(100, 5, &[[1.0, 1.0], [2.0, 2.0]]);
+    assert_eq!(c.planned_at(99), None);
+    assert_eq!(c.planned_at(100), Some([1.0, 1.0]));
+    assert_eq!(c.planned_at(104), Some([1.0, 1.0]));
+    assert_eq!(c.planned_at(105), Some([2.0, 2.0]));
+    assert_eq!(c.planned_at(109), Some([2.0, 2.0]));
+    assert_eq!(c.planned_at(110), None, "run out");
+    c.set_plan(0, 1, &[[3.0, 3.0]; 20]);
+    assert_eq!(
+        c.plan_len as usize, PLAN_SEGMENTS,
+        "longer plans are cut to the wire's room"
     );
 }
 

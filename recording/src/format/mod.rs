@@ -25,8 +25,8 @@ use anyhow::Context;
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD as B64;
 use mtanet_ipc::{
-    Command, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation, ReplayChunk, TrainerStatus,
-    WeightsHeader, names,
+    Command, CommandSource, IMAGE_HEIGHT, IMAGE_WIDTH, Observation, PLAN_SEGMENTS, ReplayChunk,
+    TrainerStatus, WeightsHeader, names,
 };
 use serde_json::{Value, json};
 
@@ -141,6 +141,9 @@ impl<W: Write + Seek> RecordingWriter<W> {
                         ("compute_us", "number"),
                         ("model_error_ratio", "number"),
                         ("probe", "number"),
+                        ("plan_first_step", "integer"),
+                        ("plan_segment_steps", "integer"),
+                        ("plan", "numbers"),
                         ("raw", "bytes"),
                     ],
                 ),
@@ -252,7 +255,10 @@ impl<W: Write + Seek> RecordingWriter<W> {
             "stamp_ns": c.stamp_ns, "step": c.step, "model_version": c.model_version,
             "wheel_velocity": fs(&c.wheel_velocity), "source": source,
             "compute_us": c.compute_ns as f64 / 1e3, "model_error_ratio": f(c.model_error_ratio),
-            "probe": f(c.probe), "raw": raw(c),
+            "probe": f(c.probe), "plan_first_step": c.plan_first_step,
+            "plan_segment_steps": c.plan_segment_steps,
+            "plan": fs(c.plan[..(c.plan_len as usize).min(PLAN_SEGMENTS)].as_flattened()),
+            "raw": raw(c),
         });
         self.write(names::COMMAND, c.stamp_ns, &v)
     }

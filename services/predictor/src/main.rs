@@ -27,11 +27,8 @@ fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
     let (cfg, ipc, shutdown): (PredictorConfig, _, _) = args.common.start("predictor")?;
-    cfg.active_inference.validate().map_err(|e| {
-        let file = (args.common.config.as_deref())
-            .map_or("<defaults>".into(), |p| p.display().to_string());
-        anyhow::anyhow!("config file {file}: [predictor.active_inference] {e}")
-    })?;
+    (cfg.active_inference.validate())
+        .map_err(|e| args.common.invalid_config("predictor.active_inference", e))?;
     tch::set_num_threads(cfg.torch_threads);
     let mut policy = mtanet_predictor::policy::Policy::new(&cfg);
     if let Some(path) = &args.checkpoint {

@@ -12,6 +12,9 @@ use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::stats::{StatsPublisher, saturate};
 use mtanet_ipc::systemd::Watchdog;
 use mtanet_ipc::weights_topic::WeightsReceiver;
+
+// A command carries the longest plan the planner makes.
+const _: () = assert!(mtanet_control::MAX_HORIZON == mtanet_ipc::PLAN_SEGMENTS);
 use mtanet_ipc::{Command, Observation, names, stamp};
 
 use crate::config::PredictorConfig;
@@ -218,6 +221,8 @@ fn answer_observations(
             c.compute_ns = compute_ns.min(u64::from(u32::MAX)) as u32;
             c.model_error_ratio = ratio.map_or(f32::NAN, |r| r as f32);
             c.probe = probe.map_or(f32::NAN, |p| p as f32);
+            let ahead = &decision.ahead;
+            c.set_plan(ahead.first_step, ahead.segment_steps, ahead.segments());
             c.stamp_ns = stamp::monotonic_ns();
         })?;
         summary.commands_sent += 1;

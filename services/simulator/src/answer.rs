@@ -25,6 +25,8 @@ pub struct Answers {
     on_miss: MissPolicy,
     /// The last command the world accepted (what `Hold` repeats).
     pub last: [f32; 2],
+    /// The last command received, with the plan it carries (followed through missed steps).
+    planned: Option<Command>,
     misses_in_a_row: u32,
     /// Observation published -> its command received.
     pub round_trip: LatencyStats,
@@ -45,6 +47,7 @@ impl Answers {
             lockstep: cfg.mode == Mode::Lockstep,
             on_miss: cfg.on_missed_command,
             last: [0.0; 2],
+            planned: None,
             misses_in_a_row: 0,
             round_trip: LatencyStats::new(),
             cmd_to_sim: LatencyStats::new(),
@@ -101,18 +104,34 @@ impl Answers {
                     .record_ns(received_ns.saturating_sub(c.stamp_ns));
             }
             let source = CommandSource::from_u32(c.source).unwrap_or(CommandSource::Reactive);
+            self.planned = Some(c);
             return Ok((c.wheel_velocity, source));
         }
         if !predictor {
             summary.teacher_steps += 1;
             return Ok((teacher.act(&frame.sensors), CommandSource::Teacher));
         }
+        self.misses_in_a_row += 1;
+        // A paused predictor: in real time the car goes on with the plan its last command
+        // carried (lockstep waits for every command, or the predictor is dead).
+        let planned = self.planned.as_ref().filter(|_| !self.lockstep);
+        if let Some(w) = planned.and_then(|c| c.planned_at(frame.step)) {
+            if self.misses_in_a_row == 1 {
+                tracing::info!(
+                    step = frame.step,
+                    "no command in time: following the last plan"
+                );
+            }
+            summary.plan_followed += 1;
+            let source = planned.map_or(0, |c| c.source);
+            let source = CommandSource::from_u32(source).unwrap_or(CommandSource::Reactive);
+            return Ok((w, source));
+        }
         summary.missed_commands += 1;
         if !self.lockstep {
             let kind = IncidentKind::MissedCommand;
             incident::record(&mut summary.incidents, frame.step, kind, begun_ns);
         }
-        self.misses_in_a_row += 1;
         if self.misses_in_a_row == 1 {
             // Once per run of misses: a frozen peer must not flood the log.
             tracing::warn!(step = frame.step, wait_ms = self.wait.as_secs_f64() * 1e3, policy = ?self.on_miss, "no command in time for this step");

@@ -115,6 +115,52 @@ impl SimulatorConfig {
         std::iter::once(self.scene.clone()).chain(more).collect()
     }
 
+    /// Checks what the services would otherwise find only at start (or an hour in): ranges, the
+    /// scene, and that every track loads. An error names the key (`simulator.also_tracks[1]`).
+    pub fn validate(&self) -> Result<(), String> {
+        self.scene
+            .validate()
+            .map_err(|e| format!("[simulator.scene] {e}"))?;
+        let t = self.switch_track_after_s;
+        if !self.also_tracks.is_empty() && !(t.is_finite() && t > 0.0) {
+            return Err(format!(
+                "simulator.switch_track_after_s = {t}: give a positive time on each track to drive also_tracks"
+            ));
+        }
+        for (key, v) in [
+            ("reset_after_lost_s", self.reset_after_lost_s),
+            ("lost_lateral_m", self.lost_lateral_m),
+            ("reverse_reset_m", self.reverse_reset_m),
+            (
+                "pace_updates_per_1000_steps",
+                self.pace_updates_per_1000_steps,
+            ),
+            ("wait_for_peers_s", self.wait_for_peers_s),
+            ("log_every_s", self.log_every_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!(
+                    "simulator.{key} = {v}: expected a finite number >= 0"
+                ));
+            }
+        }
+        for (key, track) in self.track_keys() {
+            mtanet_scenes::Track::load(track).map_err(|e| format!("{key}: {e}"))?;
+        }
+        Ok(())
+    }
+
+    /// Each track driven with the config key that names it.
+    pub fn track_keys(&self) -> Vec<(String, &std::path::Path)> {
+        let more = self.also_tracks.iter().enumerate();
+        std::iter::once((
+            "simulator.scene.track".to_string(),
+            self.scene.track.as_path(),
+        ))
+        .chain(more.map(|(i, t)| (format!("simulator.also_tracks[{i}]"), t.as_path())))
+        .collect()
+    }
+
     /// When the car is put back at the start.
     pub fn reset_rule(&self) -> ResetRule {
         ResetRule {

@@ -106,24 +106,19 @@ fn main() -> anyhow::Result<()> {
             "--seed has no effect while the teacher's noise is 0: add --noise STD (rad/s) for varied data"
         );
     }
-    if cfg.switch_track_after_s <= 0.0 && !cfg.also_tracks.is_empty() {
-        anyhow::bail!(
-            "simulator.switch_track_after_s = {}: give a positive time on each track to drive also_tracks",
-            cfg.switch_track_after_s
-        );
-    }
     let (scene, teacher_cfg) = (&cfg.scene, &cfg.teacher);
-    let mut worlds = load_worlds(&cfg)?;
     let mut teacher = Teacher::new(teacher_cfg);
-    let world = &mut worlds[0];
     if let Some(path) = &args.write_mjcf {
         // Written only after MuJoCo compiled it (World::new): what is on disk loads.
+        let world = World::new(scene).context("loading the scene (simulator.scene.track)")?;
         mtanet_files::write_bytes(path, world.mjcf().as_bytes())?;
         println!("{}: the scene of {}", path.display(), scene.track.display());
         return Ok(());
     }
 
     if args.teacher_only {
+        // The rule alone drives the first track only.
+        let world = &mut World::new(scene).context("loading the scene (simulator.scene.track)")?;
         let run = standalone::StandaloneRun {
             sim_seconds: args.sim_seconds.unwrap_or_default(),
             record: args.record,
@@ -145,6 +140,8 @@ fn main() -> anyhow::Result<()> {
         return Ok(());
     }
 
+    (cfg.validate()).map_err(|e| args.common.invalid_config("simulator", e))?;
+    let mut worlds = load_worlds(&cfg)?;
     let node = create_node(&ipc, "mta-simulator")?;
     let ports = service::Ports::open(&node)?;
     systemd::ready("simulator running");

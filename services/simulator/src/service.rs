@@ -145,6 +145,7 @@ pub fn run(
                 driver = applied_source.name(),
                 received = summary.commands_received,
                 missed = summary.missed_commands,
+                plan_followed = summary.plan_followed,
                 round_trip = %answers.round_trip.summary(),
                 "running"
             );

@@ -119,3 +119,45 @@ fn replay_and_observations_carry_the_applied_command_and_its_source() {
     assert_eq!(s.steps["active_inference"], 80);
     assert!((s.exploration_fraction - 0.2).abs() < 1e-9);
 }
+
+/// Real time, a predictor that stops answering for 30 steps after a command carrying 3 segments
+/// of 5 steps: the car follows that plan to its end (counted as `plan_followed`, driven by the
+/// plan's source), and only the steps after it are missed.
+#[test]
+fn without_commands_the_car_follows_the_last_plan_until_it_runs_out() {
+    use mtanet_ipc::CommandSource;
+    let cfg = SimulatorConfig {
+        mode: Mode::Realtime,
+        max_steps: 120,
+        wait_for_peers_s: 20.0,
+        ..Default::default()
+    };
+    let plan = [[5.0, 5.5], [6.0, 6.5], [7.0, 7.5]];
+    let silent = 40..70;
+    let d = common::drive_script("plan", cfg, |o, c| {
+        c.wheel_velocity = [5.0, 5.0];
+        c.source = CommandSource::ActiveInference as u32;
+        c.set_plan(o.step, 5, &plan);
+        !silent.contains(&o.step)
+    });
+    let s = &d.summary;
+    // Step 39's plan covers steps 39..54: 14 silent steps follow it, 16 are missed. A late
+    // answer (a busy machine) is followed or missed too, never fewer.
+    assert!(s.plan_followed >= 14, "{s:?}");
+    assert!(s.missed_commands >= 16, "{s:?}");
+    // The frame after each silent step shows the command applied in it.
+    let applied = |step: u64| {
+        d.observations
+            .iter()
+            .find(|o| o.step == step + 1)
+            .map(|o| o.command)
+    };
+    for step in 40..54 {
+        assert_eq!(
+            applied(step),
+            Some(plan[((step - 39) / 5) as usize]),
+            "step {step}"
+        );
+    }
+    assert_ne!(applied(55), Some(plan[2]), "the plan ran out at step 54");
+}

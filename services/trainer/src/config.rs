@@ -31,8 +31,13 @@ pub struct TrainerConfig {
     /// chunks lost; `mta plot` draws it); none: no learning curve. `mta up` sets it to the run
     /// folder's `learning.jsonl`.
     pub learning_log: Option<PathBuf>,
-    /// Scheduling niceness of the trainer process: training yields the CPU to the predictor.
+    /// Niceness of the trainer process while the 50 Hz path runs on the normal scheduler (no
+    /// privilege for SCHED_FIFO): training yields the CPU to the predictor.
     pub nice: i32,
+    /// Niceness while the 50 Hz path runs SCHED_FIFO, which preempts the trainer whatever its
+    /// niceness: the trainer then need not yield to other programs too (at 10 beside a CPU hog
+    /// it learns ten times slower, docs/measurements.md).
+    pub nice_beside_fifo: i32,
     /// Seconds of wall clock between progress log lines.
     pub log_every_s: f64,
     /// libtorch intra-op threads (1: never starve the predictor of the second core).
@@ -62,6 +67,7 @@ impl Default for TrainerConfig {
             checkpoint_dir: None,
             learning_log: None,
             nice: 10,
+            nice_beside_fifo: 0,
             log_every_s: 5.0,
             torch_threads: 1,
             model: ModelConfig {

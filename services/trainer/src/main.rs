@@ -46,11 +46,8 @@ fn main() -> anyhow::Result<()> {
         });
     }
     tch::set_num_threads(cfg.torch_threads);
-    // The predictor's latency matters more than training speed: yield the CPU to it.
-    // SAFETY: setpriority(2) on this process only.
-    if unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, cfg.nice) } != 0 {
-        tracing::warn!(nice = cfg.nice, "could not lower the trainer's priority");
-    }
+    let stack: mtanet_ipc::stack::StackConfig = file.section("stack")?;
+    niceness(&cfg, &stack);
     let node = create_node(&ipc, "mta-trainer")?;
     let ports = service::Ports::open(&node)?;
     systemd::ready("trainer running");
@@ -66,4 +63,18 @@ fn main() -> anyhow::Result<()> {
         "trainer stopped"
     );
     args.common.write_summary(&summary)
+}
+
+/// The predictor's latency matters more than training speed: on the normal scheduler the
+/// trainer yields the CPU to it (`nice`); when the 50 Hz path runs SCHED_FIFO, which no normal
+/// process delays, it need yield to nothing else (`nice_beside_fifo`).
+fn niceness(cfg: &TrainerConfig, stack: &mtanet_ipc::stack::StackConfig) {
+    let fifo = mtanet_ipc::sched::realtime_path_is_fifo(stack);
+    let nice = if fifo { cfg.nice_beside_fifo } else { cfg.nice };
+    if mtanet_ipc::sched::set_process_nice(nice) {
+        tracing::info!(nice, realtime_path_fifo = fifo, "trainer niceness");
+    } else {
+        let now = mtanet_ipc::sched::process_nice();
+        tracing::warn!(nice, now, "could not set the trainer's niceness");
+    }
 }

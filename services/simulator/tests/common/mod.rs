@@ -32,10 +32,26 @@ pub fn drive(
 }
 
 /// [`drive`] with the source of each command scripted too.
+#[allow(dead_code)]
 pub fn drive_with(
     tag: &str,
     cfg: SimulatorConfig,
     mut command: impl FnMut(&Observation) -> ([f32; 2], CommandSource),
+) -> Drive {
+    drive_script(tag, cfg, move |o, c| {
+        let (wheels, source) = command(o);
+        c.wheel_velocity = wheels;
+        c.source = source as u32;
+        true
+    })
+}
+
+/// Runs `cfg.max_steps` steps; `answer` fills the command for each observation (step, stamps
+/// and source filled in already), or returns false to leave it unanswered.
+pub fn drive_script(
+    tag: &str,
+    cfg: SimulatorConfig,
+    mut answer: impl FnMut(&Observation, &mut Command) -> bool,
 ) -> Drive {
     let ns = IpcConfig {
         namespace: format!("{tag}{}", std::process::id()),
@@ -87,15 +103,17 @@ pub fn drive_with(
             for o in pending {
                 episodes.push(o.episode);
                 observations.push(o);
-                let (wheels, source) = command(&o);
-                cmd.send_with(|c| {
-                    c.step = o.step;
-                    c.obs_stamp_ns = o.stamp_ns;
-                    c.wheel_velocity = wheels;
-                    c.source = source as u32;
-                    c.stamp_ns = stamp::monotonic_ns();
-                })
-                .unwrap();
+                let mut c: Command = bytemuck::Zeroable::zeroed();
+                c.step = o.step;
+                c.obs_stamp_ns = o.stamp_ns;
+                c.source = CommandSource::Reactive as u32;
+                if answer(&o, &mut c) {
+                    cmd.send_with(|s| {
+                        *s = c;
+                        s.stamp_ns = stamp::monotonic_ns();
+                    })
+                    .unwrap();
+                }
             }
             take(&mut chunks);
         }
