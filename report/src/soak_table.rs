@@ -41,8 +41,12 @@ pub fn print_table(soak: &SoakReport) {
         check(ratio <= 1.2)
     );
     println!(
-        "overruns {}, missed commands {}, dropped commands {}, lost replay chunks {}",
-        soak.overruns, soak.missed_commands, soak.dropped_commands, soak.replay.chunks_lost,
+        "overruns {}, missed commands {}, steps following the last plan {}, dropped commands {}, lost replay chunks {}",
+        soak.overruns,
+        soak.missed_commands,
+        soak.plan_followed,
+        soak.dropped_commands,
+        soak.replay.chunks_lost,
     );
     let (mp, inc) = (&soak.machine_pauses, &soak.incidents);
     println!(

@@ -11,6 +11,10 @@ use crate::{AgentStats, PlanningSummary};
 pub struct Summary {
     pub observations: u64,
     pub commands_sent: u64,
+    /// Observations not answered because a newer one was already waiting (after a pause of
+    /// this process): the simulator had moved past them.
+    #[serde(default)]
+    pub superseded: u64,
     /// Observations whose step did not follow the previous one (lost or reordered).
     pub step_gaps: u64,
     pub weights_received: u64,

@@ -14,6 +14,7 @@ use mtanet_ipc::stack::StackConfig;
 use mtanet_ipc::{Command, CommandSource, Observation, names};
 use mtanet_launch::supervisor::{Event, Supervisor};
 use mtanet_launch::{Run, plan};
+use mtanet_predictor::service::Summary as PredictorSummary;
 use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::*;
 use mtanet_trainer::service::Summary as TrainerSummary;
@@ -351,6 +352,14 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         "{missed} missed, {followed} following the plan"
     );
     assert!(followed > 0, "no step followed a plan");
+    // Woken after 1 s, the predictor answers only the newest of the frames queued for it.
+    let pred: PredictorSummary = read_json(&dir.path().join("mta-predictor.json"));
+    assert!(pred.superseded >= 1, "{pred:?}");
+    assert_eq!(
+        pred.commands_sent + pred.superseded,
+        pred.observations,
+        "{pred:?}"
+    );
     assert_eq!(
         sim.resets,
         0,

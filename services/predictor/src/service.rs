@@ -15,6 +15,7 @@ use mtanet_ipc::weights_topic::WeightsReceiver;
 
 // A command carries the longest plan the planner makes.
 const _: () = assert!(mtanet_control::MAX_HORIZON == mtanet_ipc::PLAN_SEGMENTS);
+use mtanet_control::Decision;
 use mtanet_ipc::{Command, Observation, names, stamp};
 
 use crate::config::PredictorConfig;
@@ -165,6 +166,36 @@ pub fn run_with(
     Ok(summary)
 }
 
+/// The command answering `obs`, with the plan it comes from and the model's health.
+fn send_command(
+    ports: &Ports,
+    policy: &Policy,
+    obs: &Observation,
+    decision: &Decision,
+    compute_ns: u64,
+    summary: &mut Summary,
+) -> anyhow::Result<()> {
+    let (ratio, probe) = policy
+        .model
+        .as_ref()
+        .map_or((None, None), |m| (m.error_ratio(), m.probe));
+    ports.commands.send_with(|c| {
+        c.step = obs.step;
+        c.obs_stamp_ns = obs.stamp_ns;
+        c.model_version = summary.model_version;
+        c.wheel_velocity = decision.wheels;
+        c.source = decision.driver.source() as u32;
+        c.compute_ns = compute_ns.min(u64::from(u32::MAX)) as u32;
+        c.model_error_ratio = ratio.map_or(f32::NAN, |r| r as f32);
+        c.probe = probe.map_or(f32::NAN, |p| p as f32);
+        let ahead = &decision.ahead;
+        c.set_plan(ahead.first_step, ahead.segment_steps, ahead.segments());
+        c.stamp_ns = stamp::monotonic_ns();
+    })?;
+    summary.commands_sent += 1;
+    Ok(())
+}
+
 fn answer_observations(
     ports: &Ports,
     policy: &mut Policy,
@@ -179,6 +210,7 @@ fn answer_observations(
         stats.receive.record_ns(stamp::elapsed_ns(o.stamp_ns));
         pending.push(*o)
     })?;
+    let newest = pending.last().map(|o| o.step);
     for obs in pending {
         summary.observations += 1;
         if expected_step.is_some_and(|s| s != obs.step) {
@@ -208,24 +240,13 @@ fn answer_observations(
             );
         }
         let compute_ns = t0.elapsed().as_nanos() as u64;
-        let (ratio, probe) = policy
-            .model
-            .as_ref()
-            .map_or((None, None), |m| (m.error_ratio(), m.probe));
-        ports.commands.send_with(|c| {
-            c.step = obs.step;
-            c.obs_stamp_ns = obs.stamp_ns;
-            c.model_version = summary.model_version;
-            c.wheel_velocity = decision.wheels;
-            c.source = decision.driver.source() as u32;
-            c.compute_ns = compute_ns.min(u64::from(u32::MAX)) as u32;
-            c.model_error_ratio = ratio.map_or(f32::NAN, |r| r as f32);
-            c.probe = probe.map_or(f32::NAN, |p| p as f32);
-            let ahead = &decision.ahead;
-            c.set_plan(ahead.first_step, ahead.segment_steps, ahead.segments());
-            c.stamp_ns = stamp::monotonic_ns();
-        })?;
-        summary.commands_sent += 1;
+        if Some(obs.step) == newest {
+            send_command(ports, policy, &obs, &decision, compute_ns, summary)?;
+        } else {
+            // A newer observation waits (this process was paused): the simulator has moved
+            // past this step and would drop its answer. The agent still took the frame in.
+            summary.superseded += 1;
+        }
         stats.source = decision.driver.source() as u32;
         stats.compute.record_ns(compute_ns);
         stats.age.record_ns(stamp::elapsed_ns(obs.stamp_ns));
