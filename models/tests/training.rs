@@ -1,7 +1,10 @@
 //! Training: the action MLP is trained, the guard refuses non-finite updates, truncated BPTT
 //! walks the windows, the loss is PredNet's, and a tiny model learns the synthetic task.
-//! The full "must learn" check (default model, >= 0.5x copy-last) is `#[ignore]`d: run it with
-//! `cargo test --release -p mtanet-models --test training -- --ignored --nocapture`.
+//! The paper-style "must learn" checks (default model, <= 0.5x copy-last on the synthetic task or
+//! teacher recordings, ~3,000 updates, 20-25 min) are `#[ignore]`d: run them with
+//! `cargo test --release -p mtanet-models --test training -- --ignored --nocapture`. The bar
+//! that runs in `./ops/test.sh` is the product's own: `tests/tests/learning_from_scratch.rs`
+//! learns online from scratch and must hand over to active inference within 75 simulated s.
 
 use mtanet_models::data::Dataset;
 use mtanet_models::synth::{SynthConfig, generate};
