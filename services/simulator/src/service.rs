@@ -138,17 +138,7 @@ pub fn run(
             .tick(done, || step_time.summary(), fill)?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
-            tracing::info!(
-                step = done,
-                laps = score.laps(),
-                laps_ai = score.laps_under_active_inference(),
-                driver = applied_source.name(),
-                received = summary.commands_received,
-                missed = summary.missed_commands,
-                plan_followed = summary.plan_followed,
-                round_trip = %answers.round_trip.summary(),
-                "running"
-            );
+            log_running(done, score, applied_source, &summary, &answers);
         }
     }
     let steps = car.steps();
@@ -169,6 +159,21 @@ pub fn run(
         linger_for_replay(ports, cfg, chunk.sent, shutdown, &mut watchdog)?;
     }
     Ok(summary)
+}
+
+/// The periodic progress line.
+fn log_running(step: u64, score: &Score, driver: CommandSource, s: &Summary, answers: &Answers) {
+    tracing::info!(
+        step,
+        laps = score.laps(),
+        laps_ai = score.laps_under_active_inference(),
+        driver = driver.name(),
+        received = s.commands_received,
+        missed = s.missed_commands,
+        plan_followed = s.plan_followed,
+        round_trip = %answers.round_trip.summary(),
+        "running"
+    );
 }
 
 /// Logs and counts the end of an episode: the car was put back at the start of its track, or
