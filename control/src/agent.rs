@@ -179,12 +179,15 @@ impl Agent {
             self.stats.fallbacks += 1;
             self.spare.clear();
         }
+        let late_before = self.stats.late_plans;
         let plan = if model_tick {
             self.choose_driver(t, model, plans)
         } else {
             None
         };
-        Ok(self.command(t, model, plan))
+        let mut d = self.command(t, model, plan);
+        d.late_plan = self.stats.late_plans > late_before;
+        Ok(d)
     }
 
     /// Takes in what this step senses (a new episode, the preference, whether the line is
@@ -344,6 +347,7 @@ impl Agent {
             driver,
             plan,
             ahead: Ahead::default(),
+            late_plan: false,
         }
     }
 

@@ -1,12 +1,12 @@
 //! Drives an agent around a track in-process (no IPC), stepping the world through
-//! [`mtanet_scenes::Drive`] as the simulator service does; laps and lateral error per driver
+//! [`mtanet_scenes::Circuit`] as the simulator service does; laps and lateral error per driver
 //! come from its score.
 
 use std::time::Instant;
 
 use hdrhistogram::Histogram;
 use mtanet_control::{Agent, AgentModel, AgentStats, Driver, PlanService, Tick};
-use mtanet_scenes::{CommandSource, Drive, ResetRule, World};
+use mtanet_scenes::{Circuit, CommandSource, ResetRule, World};
 use mtanet_summaries::LatencySummary;
 use serde::{Deserialize, Serialize};
 
@@ -96,7 +96,7 @@ where
         lost_lateral_m: cfg.lost_lateral_m,
         reverse_m: cfg.reverse_reset_m,
     };
-    let mut car = Drive::new(world, rule);
+    let mut car = Circuit::new(world, rule);
     let wall = Instant::now();
     let mut report = DriveReport::default();
     let mut plan_ns = Histogram::<u64>::new(3)?;
@@ -229,7 +229,7 @@ pub fn record_reactive(world: &mut World, steps: usize, seed: u64) -> anyhow::Re
         FrameShape::CAR,
         period as f32,
     );
-    let mut car = Drive::new(world, ResetRule::default());
+    let mut car = Circuit::new(world, ResetRule::default());
     let mut rec = Recorded::default();
     while rec.frames.len() < steps {
         let f = car.sense();

@@ -25,7 +25,7 @@ use anyhow::{Context, bail};
 use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::shutdown::Shutdown;
 
-use crate::matrix::{CellRecord, Failure, State};
+use crate::matrix::{Cell, CellRecord, Failure, State};
 
 #[derive(Debug, clap::Args)]
 pub struct ExperimentArgs {
@@ -111,6 +111,54 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
 
     let outcomes = pool::run(&cells, todo, done, args.jobs, &heldout, &shutdown);
     let (mut records, failures) = gather(&cells, states, outcomes, &shutdown)?;
+    analyse(&cells, &mut records, &spec, &scene, &shutdown);
+    let records: Vec<CellRecord> = records.into_iter().flatten().collect();
+    let failed: Vec<(String, Failure)> = (cells.iter().zip(failures))
+        .filter_map(|(c, f)| Some((c.label(), f?)))
+        .collect();
+    let inputs = summary::Inputs {
+        spec: &spec,
+        records: &records,
+        failures: &failed,
+        cells: cells.len(),
+        base_config: &origin,
+    };
+    write_results(&args.out, &inputs)?;
+    if shutdown.requested() {
+        bail!("stopped by a signal: run the same command again to resume");
+    }
+    failed_cells(&failed)
+}
+
+/// An error listing the failed cells (with their logs), if any.
+fn failed_cells(failed: &[(String, Failure)]) -> anyhow::Result<()> {
+    if failed.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = failed
+        .iter()
+        .map(|(l, f)| {
+            let log = f.log.as_ref().map(|p| p.display().to_string());
+            format!("{l}: {}", log.unwrap_or_else(|| f.error.clone()))
+        })
+        .collect();
+    bail!(
+        "{} cell(s) failed (run again to retry them): {}",
+        failed.len(),
+        list.join("; ")
+    )
+}
+
+/// `--namespace`, checked so that every run's namespace (`<prefix>c<cell>r<run>`) stays within
+/// iceoryx2's 32 characters; default: one no other stack uses.
+/// The offline analysis of each finished cell (kept with the cell: done once).
+fn analyse(
+    cells: &[Cell],
+    records: &mut [Option<CellRecord>],
+    spec: &spec::Spec,
+    scene: &mtanet_scenes::SceneConfig,
+    shutdown: &Shutdown,
+) {
     for (cell, record) in cells.iter().zip(records.iter_mut()) {
         let Some(record) = record.as_mut() else {
             continue;
@@ -119,57 +167,27 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
             break;
         }
         // A cell without its analysis still counts: its figures are left empty.
-        if let Err(e) = analysis::ensure(cell, record, &spec, &scene) {
+        if let Err(e) = analysis::ensure(cell, record, spec, scene) {
             tracing::warn!(cell = %cell.label(), "no analysis: {e:#}");
         }
     }
-    let records: Vec<CellRecord> = records.into_iter().flatten().collect();
-    let failed: Vec<(String, Failure)> = (cells.iter().zip(failures))
-        .filter_map(|(c, f)| Some((c.label(), f?)))
-        .collect();
-    summary::results_csv(&args.out.join("results.csv"), &records)?;
-    let inputs = summary::Inputs {
-        spec: &spec,
-        records: &records,
-        failures: &failed,
-        cells: cells.len(),
-        base_config: &origin,
-    };
-    summary::summary_md(&args.out.join("summary.md"), &inputs)?;
-    plots::write(&args.out.join("plots"), &spec, &records)?;
-    versus::plot(&args.out.join("plots"), &records, &spec.variants)?;
+}
+
+/// results.csv, summary.md and the plots, from the cells finished so far.
+fn write_results(out: &Path, inputs: &summary::Inputs) -> anyhow::Result<()> {
+    summary::results_csv(&out.join("results.csv"), inputs.records)?;
+    summary::summary_md(&out.join("summary.md"), inputs)?;
+    plots::write(&out.join("plots"), inputs.spec, inputs.records)?;
+    versus::plot(&out.join("plots"), inputs.records, &inputs.spec.variants)?;
     eprintln!(
         "[experiment] {} of {} cells finished; {}",
-        records.len(),
-        cells.len(),
-        args.out.join("summary.md").display()
+        inputs.records.len(),
+        inputs.cells,
+        out.join("summary.md").display()
     );
-    if shutdown.requested() {
-        bail!("stopped by a signal: run the same command again to resume");
-    }
-    if !failed.is_empty() {
-        let list: Vec<String> = failed
-            .iter()
-            .map(|(l, f)| {
-                format!(
-                    "{l}: {}",
-                    f.log
-                        .as_ref()
-                        .map_or(f.error.clone(), |p| p.display().to_string())
-                )
-            })
-            .collect();
-        bail!(
-            "{} cell(s) failed (run again to retry them): {}",
-            failed.len(),
-            list.join("; ")
-        );
-    }
     Ok(())
 }
 
-/// `--namespace`, checked so that every run's namespace (`<prefix>c<cell>r<run>`) stays within
-/// iceoryx2's 32 characters; default: one no other stack uses.
 fn namespace_prefix(given: Option<String>) -> anyhow::Result<String> {
     let ok = |p: &str| {
         p.len() <= 24
@@ -186,7 +204,7 @@ fn namespace_prefix(given: Option<String>) -> anyhow::Result<String> {
 /// Each cell's record or failure: as found on disk, updated by what this invocation ran (a
 /// failure written to `failed.json`, a finished cell read back from its `cell.json`).
 fn gather(
-    cells: &[matrix::Cell],
+    cells: &[Cell],
     states: Vec<State>,
     outcomes: Vec<(usize, pool::Outcome)>,
     shutdown: &Shutdown,

@@ -1,5 +1,5 @@
-//! Scheduling of the stack's processes: whether the 50 Hz path can run real-time here, and a
-//! process's niceness.
+//! Scheduling, in one place: the classes and niceness of the stack's processes and threads,
+//! whether the 50 Hz path can run real-time here, and what a process got.
 
 use crate::stack::StackConfig;
 
@@ -21,6 +21,88 @@ pub fn fifo_allowed() -> bool {
 /// the plan asks for it and this user may have it.
 pub fn realtime_path_is_fifo(stack: &StackConfig) -> bool {
     stack.process.iter().any(|p| p.realtime_priority.is_some()) && fifo_allowed()
+}
+
+/// Puts the calling thread under SCHED_FIFO at `priority`; false when refused (no privilege).
+pub fn set_thread_fifo(priority: i32) -> bool {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 }
+}
+
+/// Puts the calling thread back on the normal scheduler at `nice` (a thread that inherited
+/// SCHED_FIFO and does long work); false when the niceness was refused.
+pub fn set_thread_normal(nice: i32) -> bool {
+    let normal = libc::sched_param { sched_priority: 0 };
+    // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal) };
+    // Linux: a thread's niceness is set through its thread id.
+    // SAFETY: gettid(2), and setpriority(2) on this thread only.
+    let tid = unsafe { libc::gettid() } as libc::id_t;
+    unsafe { libc::setpriority(libc::PRIO_PROCESS, tid, nice) == 0 }
+}
+
+/// The calling thread's SCHED_FIFO priority, if it runs under SCHED_FIFO.
+pub fn thread_fifo_priority() -> Option<i32> {
+    let mut param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: sched_getscheduler(2) and sched_getparam(2) on the calling thread only.
+    let fifo = unsafe {
+        libc::sched_getscheduler(0) == libc::SCHED_FIFO && libc::sched_getparam(0, &mut param) == 0
+    };
+    fifo.then_some(param.sched_priority)
+}
+
+/// Pins the calling thread to `cpu`; false when refused.
+pub fn pin_thread(cpu: usize) -> bool {
+    // SAFETY: a zeroed cpu_set_t is the empty set; sched_setaffinity(2) with pid 0 changes the
+    // calling thread only.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of_val(&set), &set) == 0
+    }
+}
+
+/// For a child between fork and exec: exactly the class asked for (SCHED_FIFO at
+/// `realtime_priority`, else the normal scheduler), never the parent's. Async-signal-safe; a
+/// refusal is for the parent to see with [`class_of`].
+pub fn set_class_in_child(realtime_priority: Option<i32>) {
+    let (policy, p) = match realtime_priority {
+        Some(p) => (libc::SCHED_FIFO, p),
+        None => (libc::SCHED_OTHER, 0),
+    };
+    let param = libc::sched_param { sched_priority: p };
+    // SAFETY: sched_setscheduler(2) is async-signal-safe and changes only the calling process.
+    unsafe { libc::sched_setscheduler(0, policy, &param) };
+}
+
+/// Whether process `pid` (its main thread) runs under SCHED_FIFO.
+pub fn is_fifo(pid: u32) -> bool {
+    // SAFETY: reads another process's policy.
+    unsafe { libc::sched_getscheduler(pid as libc::pid_t) == libc::SCHED_FIFO }
+}
+
+/// A process's scheduling class as `ps` shows it: "FIFO 20", or "OTHER nice 10".
+pub fn class_of(pid: u32) -> String {
+    let pid = pid as libc::pid_t;
+    let mut param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: reads the policy and priority of another process (its main thread).
+    let (policy, ok) = unsafe {
+        (
+            libc::sched_getscheduler(pid),
+            libc::sched_getparam(pid, &mut param) == 0,
+        )
+    };
+    // SAFETY: getpriority(2) on a process id.
+    let nice = unsafe { libc::getpriority(libc::PRIO_PROCESS, pid as libc::id_t) };
+    match policy {
+        libc::SCHED_FIFO if ok => format!("FIFO {}", param.sched_priority),
+        libc::SCHED_OTHER => format!("OTHER nice {nice}"),
+        libc::SCHED_IDLE => "IDLE".into(),
+        p => format!("policy {p}"),
+    }
 }
 
 /// Sets the whole process's niceness (raising it needs no privilege, lowering does); false when

@@ -177,16 +177,10 @@ pub fn command<S: AsRef<OsStr>>(
             std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
         )
         .stdout(Stdio::null());
-    // SAFETY: sched_setscheduler(2) is async-signal-safe and changes only the child; a refusal
-    // (no privilege) is for the caller to check with sched_getscheduler(2).
+    // SAFETY: the hook only calls sched_setscheduler(2), async-signal-safe, on the child.
     unsafe {
         cmd.pre_exec(move || {
-            let (policy, p) = match realtime_priority {
-                Some(p) => (libc::SCHED_FIFO, p),
-                None => (libc::SCHED_OTHER, 0),
-            };
-            let param = libc::sched_param { sched_priority: p };
-            libc::sched_setscheduler(0, policy, &param);
+            mtanet_ipc::sched::set_class_in_child(realtime_priority);
             Ok(())
         });
     }

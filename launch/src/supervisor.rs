@@ -150,8 +150,7 @@ impl Supervisor {
             .with_context(|| crate::plan::missing_hint(&c.spec.binary))?;
         let pid = child.id();
         if let Some(prio) = c.spec.realtime_priority {
-            // SAFETY: reads the policy of our own child.
-            if unsafe { libc::sched_getscheduler(pid as libc::pid_t) } != libc::SCHED_FIFO {
+            if !mtanet_ipc::sched::is_fifo(pid) {
                 tracing::warn!(process = %name, prio, "could not give it SCHED_FIFO (needs root or CAP_SYS_NICE); it runs with the normal scheduler");
             }
         }

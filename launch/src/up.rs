@@ -111,19 +111,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
     if let Some(ns) = &args.namespace {
         ipc.namespace = ns.clone();
     }
-    // Two stacks in one namespace would answer each other's observations.
-    let live = mtanet_ipc::node::census(&ipc)?.alive;
-    if !live.is_empty() {
-        if reserved {
-            let _ = std::fs::remove_dir_all(&out);
-        }
-        bail!(
-            "namespace {:?} is in use by a live stack ({}): stop it, or give this one another \
-             with --namespace NAME (or [ipc] namespace in the config)",
-            ipc.namespace,
-            live.join(", ")
-        );
-    }
+    refuse_live_namespace(&ipc, &out, reserved)?;
     let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
     let track = args.track.clone().unwrap_or(scene.track);
     mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;
@@ -153,22 +141,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
 
     let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
-    let run = crate::plan::Run {
-        config: Some(config.clone()),
-        namespace: Some(ipc.namespace.clone()),
-        summaries: Some(out.clone()),
-        track: Some(track.clone()),
-        checkpoint: start_ck.clone(),
-        trace: Some(out.join(run_folder::TRACE)),
-        max_steps: (args.sim_seconds > 0.0)
-            .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
-        no_trainer: args.no_learning || args.rule,
-        record: args.record.then(|| crate::plan::Recording {
-            out: out.join("recording.mcap"),
-            summary: out.join("recording.json"),
-            weight_blobs: args.record_weight_blobs,
-        }),
-    };
+    let run = plan_run(&args, &config, &ipc, &out, &track, start_ck);
     start_in_order(&mut sup, &stack, &run)?;
 
     let target = (args.sim_seconds > 0.0).then_some(args.sim_seconds);
@@ -183,14 +156,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         eprintln!("\n[up] {line:#}");
     }
     eprintln!("\n[up] stopping");
-    let mut failed = Vec::new();
-    for (name, how) in sup.stop_all(Duration::from_secs(60)) {
-        match how.as_deref() {
-            Some("exit code 0") => {}
-            Some(other) => failed.push(format!("{name} ended with {other}")),
-            None => failed.push(format!("{name} did not stop within 60 s")),
-        }
-    }
+    let failed = stop_all(&mut sup);
     conclude(
         &sup,
         &file,
@@ -209,6 +175,64 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
 /// Starts the plan's processes in order, each one ready (READY=1: ports open, loop running)
 /// before the next, as the Type=notify units do: the simulator comes last and its first step
 /// finds its peers answering. A process that does not come up stops the others.
+/// Two stacks in one namespace would answer each other's observations: refused (removing the
+/// run folder made for this run, still empty).
+fn refuse_live_namespace(ipc: &IpcConfig, out: &Path, reserved: bool) -> anyhow::Result<()> {
+    let live = mtanet_ipc::node::census(ipc)?.alive;
+    if live.is_empty() {
+        return Ok(());
+    }
+    if reserved {
+        let _ = std::fs::remove_dir_all(out);
+    }
+    bail!(
+        "namespace {:?} is in use by a live stack ({}): stop it, or give this one another \
+         with --namespace NAME (or [ipc] namespace in the config)",
+        ipc.namespace,
+        live.join(", ")
+    )
+}
+
+/// The launch plan's inputs for this run: its config, namespace, folder, track and checkpoint.
+fn plan_run(
+    args: &UpArgs,
+    config: &Path,
+    ipc: &IpcConfig,
+    out: &Path,
+    track: &Path,
+    start_ck: Option<PathBuf>,
+) -> crate::plan::Run {
+    crate::plan::Run {
+        config: Some(config.to_path_buf()),
+        namespace: Some(ipc.namespace.clone()),
+        summaries: Some(out.to_path_buf()),
+        track: Some(track.to_path_buf()),
+        checkpoint: start_ck,
+        trace: Some(out.join(run_folder::TRACE)),
+        max_steps: (args.sim_seconds > 0.0)
+            .then(|| (args.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64),
+        no_trainer: args.no_learning || args.rule,
+        record: args.record.then(|| crate::plan::Recording {
+            out: out.join("recording.mcap"),
+            summary: out.join("recording.json"),
+            weight_blobs: args.record_weight_blobs,
+        }),
+    }
+}
+
+/// Stops every process; what did not end cleanly.
+fn stop_all(sup: &mut Supervisor) -> Vec<String> {
+    let mut failed = Vec::new();
+    for (name, how) in sup.stop_all(Duration::from_secs(60)) {
+        match how.as_deref() {
+            Some("exit code 0") => {}
+            Some(other) => failed.push(format!("{name} ended with {other}")),
+            None => failed.push(format!("{name} did not stop within 60 s")),
+        }
+    }
+    failed
+}
+
 fn start_in_order(
     sup: &mut Supervisor,
     stack: &StackConfig,

@@ -167,8 +167,21 @@ impl ModelConfig {
 
     /// Checks every rule the network relies on, naming the offending key.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_layers()?;
+        self.validate_action()?;
+        self.validate_loss()?;
+        let times = (self.layers() - 1) as u32;
+        let div = 1i64 << times;
+        if self.image_height % div != 0 || self.image_width % div != 0 {
+            let (h, w) = (self.image_height, self.image_width);
+            return Err(ConfigError::NotPoolable { h, w, times, div });
+        }
+        Ok(())
+    }
+
+    /// Layers, their sizes, tau, kernel, image and frame skip.
+    fn validate_layers(&self) -> Result<(), ConfigError> {
         let layers = self.layers();
-        let range = |key, value: String, why| Err(ConfigError::OutOfRange { key, value, why });
         if layers == 0 {
             return range("channels", "[]".into(), "needs at least one layer");
         }
@@ -187,23 +200,16 @@ impl ModelConfig {
             let v = format!("{}x{}", self.image_height, self.image_width);
             return range("image_height/image_width", v, "must be positive");
         }
-        if self.action_dim < 1 {
-            return range("action_dim", self.action_dim.to_string(), "must be >= 1");
-        }
         if !(1..=100).contains(&self.frame_skip) {
-            return range(
-                "frame_skip",
-                self.frame_skip.to_string(),
-                "must be in 1..=100",
-            );
+            let v = self.frame_skip.to_string();
+            return range("frame_skip", v, "must be in 1..=100");
         }
-        if self
+        let sizes = self
             .channels
             .iter()
             .chain(&self.a_channels)
-            .chain(&self.gus)
-            .any(|&c| c < 1)
-        {
+            .chain(&self.gus);
+        if sizes.clone().any(|&c| c < 1) {
             return range(
                 "channels/a_channels/gus",
                 "0 or less".into(),
@@ -228,6 +234,14 @@ impl ModelConfig {
         if self.kernel < 1 || self.kernel % 2 == 0 {
             return range("kernel", self.kernel.to_string(), "must be odd and >= 1");
         }
+        Ok(())
+    }
+
+    /// The action's size, normalisation and MLP.
+    fn validate_action(&self) -> Result<(), ConfigError> {
+        if self.action_dim < 1 {
+            return range("action_dim", self.action_dim.to_string(), "must be >= 1");
+        }
         for (key, v) in [
             ("action_offset", &self.action_offset),
             ("action_scale", &self.action_scale),
@@ -244,22 +258,21 @@ impl ModelConfig {
             return range("action_scale", s.to_string(), "must be > 0");
         }
         if self.action_hidden < 1 {
-            return range(
-                "action_hidden",
-                self.action_hidden.to_string(),
-                "must be >= 1",
-            );
+            let v = self.action_hidden.to_string();
+            return range("action_hidden", v, "must be >= 1");
         }
+        Ok(())
+    }
+
+    /// The loss weights over layers and time.
+    fn validate_loss(&self) -> Result<(), ConfigError> {
         let weights = self
             .layer_loss_weights
             .iter()
             .chain(&self.time_loss_weights);
         if let Some(w) = weights.clone().find(|w| !(**w >= 0.0 && w.is_finite())) {
-            return range(
-                "layer_loss_weights/time_loss_weights",
-                w.to_string(),
-                "must be >= 0",
-            );
+            let key = "layer_loss_weights/time_loss_weights";
+            return range(key, w.to_string(), "must be >= 0");
         }
         if self.time_loss_weights.is_empty() {
             return range("time_loss_weights", "[]".into(), "needs at least one entry");
@@ -270,12 +283,6 @@ impl ModelConfig {
                 "all 0".into(),
                 "nothing would be trained",
             );
-        }
-        let times = (layers - 1) as u32;
-        let div = 1i64 << times;
-        if self.image_height % div != 0 || self.image_width % div != 0 {
-            let (h, w) = (self.image_height, self.image_width);
-            return Err(ConfigError::NotPoolable { h, w, times, div });
         }
         Ok(())
     }
@@ -302,6 +309,11 @@ impl ModelConfig {
             })
             .collect()
     }
+}
+
+/// An out-of-range error for `key`.
+fn range(key: &'static str, value: String, why: &'static str) -> Result<(), ConfigError> {
+    Err(ConfigError::OutOfRange { key, value, why })
 }
 
 #[cfg(test)]

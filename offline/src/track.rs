@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use mtanet_scenes::track::{GENERATED_PREFIX, generate_counting};
 use mtanet_scenes::{SceneConfig, World};
+use mtanet_track::{GENERATED_PREFIX, generate_counting};
 
 #[derive(Debug, clap::Args)]
 pub struct TrackArgs {

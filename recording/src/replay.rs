@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use iceoryx2::prelude::*;
 use mtanet_ipc::cli::CommonArgs;
 use mtanet_ipc::node::create_node;
 use mtanet_ipc::ports::{Receiver, Sender, TopicShape};
@@ -146,90 +147,143 @@ pub fn run(args: ReplayArgs) -> anyhow::Result<()> {
     );
 
     let node = create_node(&ipc, "mta-replay")?;
-    let obs_tx = Sender::<Observation>::open(&node, names::OBSERVATION, TopicShape::STEP)?;
-    let cmds = Receiver::<Command>::open_deep(&node, names::COMMAND, TopicShape::STEP)?;
-    let has_blobs = reading
-        .messages
-        .iter()
-        .any(|m| matches!(m.1, Recorded::Weights(_, Some(_))));
-    let weights = has_blobs.then(|| WeightsSender::open(&node)).transpose()?;
-    // The simulator also feeds a trainer: its recorded chunks go out as they came.
-    let replay_tx = Sender::<ReplayChunk>::open(&node, names::REPLAY, TopicShape::REPLAY)?;
-
-    // A predictor: subscribed to observations and publishing commands.
-    let until = Instant::now() + Duration::from_secs_f64(args.wait_s);
-    while obs_tx.subscribers() == 0 || cmds.publishers() == 0 {
-        if shutdown.requested() {
-            return Ok(());
-        }
-        if Instant::now() > until {
-            bail!(
-                "no predictor in namespace {:?} within {} s (start mta-predictor first)",
-                ipc.namespace,
-                args.wait_s
-            );
-        }
-        std::thread::sleep(Duration::from_millis(20));
+    let out = Outlets::open(&node, &reading)?;
+    if !out.await_predictor(&args, &ipc.namespace, &shutdown)? {
+        return Ok(());
     }
+    let pace = if args.lockstep {
+        "lockstep".to_string()
+    } else {
+        format!("x{} pace", args.speed)
+    };
     eprintln!(
-        "[replay] {} observations from {} to the predictor in {:?} ({})",
-        n_obs,
+        "[replay] {n_obs} observations from {} to the predictor in {:?} ({pace})",
         args.file.display(),
         ipc.namespace,
-        if args.lockstep {
-            "lockstep".to_string()
-        } else {
-            format!("x{} pace", args.speed)
-        }
     );
+    out.play(&reading, &args, &mut cmp, &shutdown)?;
+    conclude(&args, &cmp.summary)
+}
 
-    let t0 = Instant::now();
-    let mut sim0 = None;
-    let mut last_step = None;
-    for (_, m) in &reading.messages {
-        if shutdown.requested() {
-            break;
+/// What stands in for the simulator (and the trainer's weights) before one predictor.
+struct Outlets {
+    obs: Sender<Observation>,
+    cmds: Receiver<Command>,
+    /// Only when the recording holds the weights' bytes.
+    weights: Option<WeightsSender>,
+    /// The simulator also feeds a trainer: its recorded chunks go out as they came.
+    replay: Sender<ReplayChunk>,
+}
+
+impl Outlets {
+    fn open(node: &Node<ipc::Service>, reading: &format::Reading) -> anyhow::Result<Self> {
+        let has_blobs = reading
+            .messages
+            .iter()
+            .any(|m| matches!(m.1, Recorded::Weights(_, Some(_))));
+        Ok(Self {
+            obs: Sender::open(node, names::OBSERVATION, TopicShape::STEP)?,
+            cmds: Receiver::open_deep(node, names::COMMAND, TopicShape::STEP)?,
+            weights: has_blobs.then(|| WeightsSender::open(node)).transpose()?,
+            replay: Sender::open(node, names::REPLAY, TopicShape::REPLAY)?,
+        })
+    }
+
+    /// Waits for a predictor (subscribed to observations, publishing commands); false when
+    /// stopped first.
+    fn await_predictor(
+        &self,
+        args: &ReplayArgs,
+        ns: &str,
+        shutdown: &Shutdown,
+    ) -> anyhow::Result<bool> {
+        let until = Instant::now() + Duration::from_secs_f64(args.wait_s);
+        while self.obs.subscribers() == 0 || self.cmds.publishers() == 0 {
+            if shutdown.requested() {
+                return Ok(false);
+            }
+            if Instant::now() > until {
+                bail!(
+                    "no predictor in namespace {ns:?} within {} s (start mta-predictor first)",
+                    args.wait_s
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
         }
-        match m {
-            Recorded::Weights(h, Some(blob)) => {
-                if let Some(w) = &weights {
-                    w.send(*h, blob)?;
-                    cmp.summary.weights_sent += 1;
-                }
+        Ok(true)
+    }
+
+    /// Sends the recording's messages in order, at its pace or in lockstep, comparing the
+    /// commands that come back.
+    fn play(
+        &self,
+        reading: &format::Reading,
+        args: &ReplayArgs,
+        cmp: &mut Comparison,
+        shutdown: &Shutdown,
+    ) -> anyhow::Result<()> {
+        let t0 = Instant::now();
+        let mut sim0 = None;
+        let mut last_step = None;
+        for (_, m) in &reading.messages {
+            if shutdown.requested() {
+                break;
             }
-            Recorded::Replay(c) => {
-                replay_tx.send_with(|slot| *slot = **c)?;
-                cmp.summary.replay_chunks_sent += 1;
-            }
-            Recorded::Observation(o) => {
-                if !args.lockstep {
-                    let s0 = *sim0.get_or_insert(o.sim_time_s);
-                    let due =
-                        t0 + Duration::from_secs_f64(((o.sim_time_s - s0) / args.speed).max(0.0));
-                    std::thread::sleep(due.saturating_duration_since(Instant::now()));
-                }
-                let mut sent = *o;
-                sent.stamp_ns = stamp::monotonic_ns();
-                obs_tx.send_with(|slot| *slot = sent)?;
-                cmp.summary.observations_sent += 1;
-                last_step = Some(o.step);
-                if args.lockstep {
-                    let answered = wait_for(&cmds, o.step, args.command_timeout_ms, &mut cmp)?;
-                    if !answered {
-                        cmp.summary.missing += 1;
+            match m {
+                Recorded::Weights(h, Some(blob)) => {
+                    if let Some(w) = &self.weights {
+                        w.send(*h, blob)?;
+                        cmp.summary.weights_sent += 1;
                     }
-                } else {
-                    cmds.for_each(|c| cmp.check(c))?;
                 }
+                Recorded::Replay(c) => {
+                    self.replay.send_with(|slot| *slot = **c)?;
+                    cmp.summary.replay_chunks_sent += 1;
+                }
+                Recorded::Observation(o) => {
+                    if !args.lockstep {
+                        let s0 = *sim0.get_or_insert(o.sim_time_s);
+                        let after = ((o.sim_time_s - s0) / args.speed).max(0.0);
+                        let due = t0 + Duration::from_secs_f64(after);
+                        std::thread::sleep(due.saturating_duration_since(Instant::now()));
+                    }
+                    self.observe(o, args, cmp)?;
+                    last_step = Some(o.step);
+                }
+                _ => {}
             }
-            _ => {}
         }
+        // A paced replay has not waited for its last commands (a lockstep one awaited each).
+        if let (false, Some(step)) = (args.lockstep, last_step) {
+            wait_for(&self.cmds, step, args.command_timeout_ms, cmp)?;
+        }
+        Ok(())
     }
-    // A paced replay has not waited for its last commands (a lockstep one awaited each).
-    if let (false, Some(step)) = (args.lockstep, last_step) {
-        wait_for(&cmds, step, args.command_timeout_ms, &mut cmp)?;
+
+    /// Sends one observation (stamped now) and takes in the commands come back.
+    fn observe(
+        &self,
+        o: &Observation,
+        args: &ReplayArgs,
+        cmp: &mut Comparison,
+    ) -> anyhow::Result<()> {
+        let mut sent = *o;
+        sent.stamp_ns = stamp::monotonic_ns();
+        self.obs.send_with(|slot| *slot = sent)?;
+        cmp.summary.observations_sent += 1;
+        if args.lockstep {
+            if !wait_for(&self.cmds, o.step, args.command_timeout_ms, cmp)? {
+                cmp.summary.missing += 1;
+            }
+        } else {
+            self.cmds.for_each(|c| cmp.check(c))?;
+        }
+        Ok(())
     }
-    let s = &cmp.summary;
+}
+
+/// Prints and writes the summary; with `--expect-identical`, fails unless every command matched.
+fn conclude(args: &ReplayArgs, s: &ReplaySummary) -> anyhow::Result<()> {
     println!("{}", serde_json::to_string_pretty(s)?);
     args.common.write_summary(s)?;
     if args.expect_identical {

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::track::TrackError;
 use crate::{CONTROL_PERIOD_S, PHYSICS_TIMESTEP_S};
+use mtanet_track::TrackError;
 
 /// Why a [`crate::World`] could not be built.
 #[derive(Debug, thiserror::Error)]

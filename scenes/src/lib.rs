@@ -7,30 +7,28 @@
 //!   validated.
 //! - [`World`]: MJCF generated from the track, compiled and stepped with MuJoCo 3.17.
 //! - [`Sensors`]: camera image, line sensors, wheel velocities, ground truth for evaluation.
-//! - [`Drive`]: one car stepped round its track, lost cars put back as new episodes (no IPC),
+//! - [`Circuit`]: one car stepped round its track, lost cars put back as new episodes (no IPC),
 //!   with its [`Score`]: laps, lateral error and who drove.
 //! - [`Teacher`]: the classic line-tracer rule with seeded exploration noise.
 
 pub mod camera;
 pub mod car;
+pub mod circuit;
 mod config;
 mod cull;
-pub mod drive;
 pub mod mjcf;
 mod referee;
 pub mod score;
 mod teacher;
-/// The tracks (`mtanet-track`), here under their old path.
-pub use mtanet_track as track;
 mod truth;
 mod world;
 
+pub use circuit::{Circuit, Frame, ResetRule, Stepped};
 pub use config::{SceneConfig, SceneError, shipped_track, tracks_dir};
-pub use drive::{Drive, Frame, ResetRule, Stepped};
+pub use mtanet_track::{Track, TrackError};
 pub use referee::{Referee, Verdict};
 pub use score::{CommandSource, ControlSummary, LateralError, Score};
 pub use teacher::{Teacher, TeacherConfig};
-pub use track::{Track, TrackError};
 pub use truth::GroundTruth;
 pub use world::{World, WorldState};
 

@@ -6,7 +6,7 @@
 use std::fmt::Write;
 
 use crate::car;
-use crate::track::Track;
+use mtanet_track::Track;
 
 /// Geom groups: the floor and the line are what the cameras see; only the line is what the line
 /// sensors react to. The car's own geoms are in `car::CAR_GROUP`.
@@ -152,7 +152,7 @@ pub fn line_boxes(track: &Track) -> Vec<LineBox> {
             j = (j + 1) % n;
         }
         let (a, b) = (track.points()[i], track.points()[j]);
-        let len = crate::track::dist(a, b);
+        let len = mtanet_track::dist(a, b);
         let d = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
         let (ea, eb) = (miter(turns[i]), miter(turns[j]));
         // Centre shifted by half the difference of the two extensions.

@@ -1,5 +1,5 @@
 //! How a drive went, from ground truth: laps, lateral error, time on the line, and who drove
-//! (steps, lateral error and laps per command source, hand-overs, fallbacks). [`crate::Drive`]
+//! (steps, lateral error and laps per command source, hand-overs, fallbacks). [`crate::Circuit`]
 //! keeps one, so the simulator service, the standalone teacher run and `eval`'s drive count a
 //! lap, and a lap under active inference, the same way.
 

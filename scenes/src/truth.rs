@@ -2,7 +2,7 @@
 
 use serde::Serialize;
 
-use crate::track::Track;
+use mtanet_track::Track;
 
 /// What really happened, for evaluation only (the model never sees it).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]

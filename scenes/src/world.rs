@@ -7,9 +7,9 @@ use crate::car::{self, names};
 use crate::config::{SceneConfig, SceneError};
 use crate::cull::LineCulling;
 use crate::mjcf::{self, FLOOR_GROUP, LINE_GROUP, MjcfOptions};
-use crate::track::Track;
 use crate::truth::{self, GroundTruth, LapCounter};
 use crate::{IMAGE_PIXELS, Sensors};
+use mtanet_track::Track;
 
 /// Geom groups the cameras see (floor and line) and the line sensors react to (line only).
 fn group_mask(groups: &[u8]) -> [u8; 6] {

@@ -234,12 +234,12 @@ fn middle_line_sensor_agrees_with_ground_truth() {
 /// new episode within the reset window, and laps keep counting over episodes.
 #[test]
 fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes() {
-    use mtanet_scenes::{CommandSource, Drive, ResetRule, Verdict};
+    use mtanet_scenes::{Circuit, CommandSource, ResetRule, Verdict};
     let teacher = CommandSource::Teacher;
     let mut w = World::new(&SceneConfig::default().with_track(shipped_track("oval"))).unwrap();
     let mut t = Teacher::new(&TeacherConfig::default());
     let rule = ResetRule::default();
-    let mut car = Drive::new(&mut w, rule);
+    let mut car = Circuit::new(&mut w, rule);
     let mut laps = 0;
     // The teacher laps once...
     while laps < 1 {
@@ -286,7 +286,7 @@ fn the_drive_puts_a_car_going_the_wrong_way_back_and_counts_laps_over_episodes()
 /// score run on over the switches.
 #[test]
 fn a_drive_round_several_tracks_moves_to_the_next_after_the_set_time() {
-    use mtanet_scenes::{CommandSource, Drive, ResetRule};
+    use mtanet_scenes::{Circuit, CommandSource, ResetRule};
     let scene = |t: &str| SceneConfig::default().with_track(shipped_track(t));
     let mut worlds = vec![
         World::new(&scene("oval")).unwrap(),
@@ -295,7 +295,7 @@ fn a_drive_round_several_tracks_moves_to_the_next_after_the_set_time() {
     let lengths: Vec<f64> = worlds.iter().map(|w| w.track().length_m()).collect();
     assert!((lengths[0] - lengths[1]).abs() > 0.01, "{lengths:?}");
     let mut t = Teacher::new(&TeacherConfig::default());
-    let mut car = Drive::round(&mut worlds, ResetRule::default(), 1.0);
+    let mut car = Circuit::round(&mut worlds, ResetRule::default(), 1.0);
     let per_track = (1.0 / CONTROL_PERIOD_S).round() as u64;
     let mut switches = Vec::new();
     while switches.len() < 2 {

@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use mtanet_scenes::track::TrackError;
 use mtanet_scenes::{SceneConfig, Track, World, tracks_dir};
+use mtanet_track::TrackError;
 
 fn shipped() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(tracks_dir())

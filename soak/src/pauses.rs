@@ -80,14 +80,7 @@ impl PauseWatch {
 /// Sleeps to absolute 2 ms ticks on `cpu` at SCHED_FIFO 99, recording every wake-up later than
 /// [`PAUSE_NS`]. False if it could not be real-time (then it records nothing).
 fn watch(cpu: usize, stop: &AtomicBool, pauses: &Mutex<Vec<Pause>>) -> bool {
-    // SAFETY: affinity and scheduling of the calling thread only, with values we own.
-    let realtime = unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        libc::CPU_SET(cpu, &mut set);
-        let pinned = libc::sched_setaffinity(0, std::mem::size_of_val(&set), &set) == 0;
-        let param = libc::sched_param { sched_priority: 99 };
-        pinned && libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0
-    };
+    let realtime = mtanet_ipc::sched::pin_thread(cpu) && mtanet_ipc::sched::set_thread_fifo(99);
     if !realtime {
         tracing::warn!(
             cpu,

@@ -30,9 +30,7 @@ pub struct PeerArgs {
 /// Puts the calling thread under SCHED_FIFO at `priority` (none: leaves it); false when refused.
 pub fn realtime(priority: Option<i32>) -> bool {
     let Some(p) = priority else { return true };
-    let param = libc::sched_param { sched_priority: p };
-    // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
-    let ok = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0;
+    let ok = mtanet_ipc::sched::set_thread_fifo(p);
     if !ok {
         tracing::warn!(
             priority = p,

@@ -3,23 +3,7 @@
 
 /// A process's scheduling class as `ps` shows it: "FIFO 20", or "OTHER nice 10".
 pub(crate) fn scheduling(pid: u32) -> String {
-    let pid = pid as libc::pid_t;
-    let mut param = libc::sched_param { sched_priority: 0 };
-    // SAFETY: reads the policy and priority of another process (its main thread).
-    let (policy, ok) = unsafe {
-        (
-            libc::sched_getscheduler(pid),
-            libc::sched_getparam(pid, &mut param) == 0,
-        )
-    };
-    // SAFETY: getpriority(2) on a process id.
-    let nice = unsafe { libc::getpriority(libc::PRIO_PROCESS, pid as libc::id_t) };
-    match policy {
-        libc::SCHED_FIFO if ok => format!("FIFO {}", param.sched_priority),
-        libc::SCHED_OTHER => format!("OTHER nice {nice}"),
-        libc::SCHED_IDLE => "IDLE".into(),
-        p => format!("policy {p}"),
-    }
+    mtanet_ipc::sched::class_of(pid)
 }
 
 /// VmRSS (kB) and open file descriptors of a process.

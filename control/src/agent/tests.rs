@@ -324,6 +324,7 @@ fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
     let mut a = agent(&cfg());
     let mut first_only = FirstOnly::default();
     let mut last = [0.0; 2];
+    let mut flagged = 0;
     for _ in 0..40 {
         let d = a
             .step(
@@ -336,12 +337,14 @@ fn a_late_plan_keeps_the_car_going_on_the_last_plan_and_is_counted() {
             )
             .unwrap();
         last = d.wheels;
+        flagged += u64::from(d.late_plan);
     }
     assert!(
         a.driving_by_active_inference(),
         "planning late is no reason to stop"
     );
     assert!(a.stats.late_plans >= 5, "{:?}", a.stats);
+    assert_eq!(flagged, a.stats.late_plans, "each late plan's step says so");
     assert_eq!(a.stats.plans, 1, "only the takeover's plan came");
     assert_eq!(last, [8.0, 8.0], "the last plan's segments, then held");
 }

@@ -216,6 +216,9 @@ pub struct Decision {
     pub plan: Option<(Outcome, Duration)>,
     /// What active inference plans to do from this step's segment on (empty otherwise).
     pub ahead: Ahead,
+    /// The plan for the segment this step began was not there in time (the rest of the
+    /// previous plan drives it).
+    pub late_plan: bool,
 }
 
 /// The rest of the plan active inference drives by, from the segment of the step decided: the

@@ -14,7 +14,7 @@ mod read;
 #[cfg(test)]
 mod tests;
 
-pub use read::read;
+pub use read::{Reading, read};
 
 use std::collections::BTreeMap;
 use std::fs::File;

@@ -6,6 +6,7 @@ use mtanet_control::{
     Agent, AgentStats, Blind, Decision, FrameShape, NoPlans, Planner, PlanningSummary, Threaded,
     Tick,
 };
+use mtanet_ipc::sched;
 use mtanet_ipc::{CONTROL_PERIOD_S, Observation};
 use mtanet_models::live::{Imagined, LiveModel};
 
@@ -148,23 +149,12 @@ pub enum Install {
 /// control loop), kept below that thread's priority; otherwise, or if refused, the normal
 /// scheduler at `nice` ([`background_priority`]).
 pub fn planner_priority(priority: i32, nice: i32) {
-    // SAFETY: sched_getscheduler(2) and sched_getparam(2) on the calling thread only.
-    let mut inherited = libc::sched_param { sched_priority: 0 };
-    let realtime = unsafe {
-        libc::sched_getscheduler(0) == libc::SCHED_FIFO
-            && libc::sched_getparam(0, &mut inherited) == 0
-    };
-    if priority > 0 && realtime {
-        let param = libc::sched_param {
-            sched_priority: priority.min(inherited.sched_priority - 1).max(1),
-        };
-        // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only; lowering a
-        // real-time priority needs no privilege.
-        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
-            tracing::info!(
-                priority = param.sched_priority,
-                "planner thread: SCHED_FIFO"
-            );
+    let inherited = sched::thread_fifo_priority();
+    if let (true, Some(loop_priority)) = (priority > 0, inherited) {
+        // Lowering a real-time priority needs no privilege.
+        let p = priority.min(loop_priority - 1).max(1);
+        if sched::set_thread_fifo(p) {
+            tracing::info!(priority = p, "planner thread: SCHED_FIFO");
             return;
         }
     }
@@ -181,13 +171,7 @@ pub fn planner_priority(priority: i32, nice: i32) {
 /// SCHED_OTHER (it inherited SCHED_FIFO and would hold a core from the simulator and the
 /// trainer), at `nice`.
 pub fn background_priority(nice: i32, what: &str) {
-    let normal = libc::sched_param { sched_priority: 0 };
-    // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
-    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal) };
-    // Linux: a thread's niceness is set through its thread id.
-    // SAFETY: setpriority(2) on this thread only.
-    let tid = unsafe { libc::gettid() } as libc::id_t;
-    if unsafe { libc::setpriority(libc::PRIO_PROCESS, tid, nice) } != 0 {
+    if !sched::set_thread_normal(nice) {
         tracing::warn!(nice, "could not lower the {what} thread's priority");
     }
 }

@@ -221,9 +221,8 @@ fn answer_observations(
         intake.receive(ports, summary)?;
         intake.install_due(Some(obs.step), policy, summary)?;
         let t0 = Instant::now();
-        let late_before = policy.stats().late_plans;
         let decision = policy.act(&obs)?;
-        if policy.stats().late_plans > late_before {
+        if decision.late_plan {
             // Asked for a segment (frame_skip steps) before the one it was due for.
             let segment = policy
                 .model

@@ -16,7 +16,7 @@ use mtanet_ipc::wait::{self, Waited, Wake};
 use mtanet_ipc::{
     Command, CommandSource, Observation, ProcessStats, ReplayChunk, TrainerStatus, names, stamp,
 };
-use mtanet_scenes::{Drive, Frame, Score, Stepped, Teacher, Verdict, World};
+use mtanet_scenes::{Circuit, Frame, Score, Stepped, Teacher, Verdict, World};
 
 use crate::answer::Answers;
 use crate::chunk::ChunkBuilder;
@@ -74,7 +74,7 @@ pub fn run(
     // Who decided the command in force (it led to the next frame).
     let mut applied_source = CommandSource::Teacher;
     let mut last_log = Instant::now();
-    let mut car = Drive::round(worlds, cfg.reset_rule(), cfg.switch_track_after_s);
+    let mut car = Circuit::round(worlds, cfg.reset_rule(), cfg.switch_track_after_s);
     while !shutdown.requested() && (cfg.max_steps == 0 || car.steps() < cfg.max_steps) {
         let step = car.steps();
         pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
@@ -178,7 +178,7 @@ fn log_running(step: u64, score: &Score, driver: CommandSource, s: &Summary, ans
 
 /// Logs and counts the end of an episode: the car was put back at the start of its track, or
 /// moved on to the next track.
-fn new_episode(car: &Drive, stepped: &Stepped, frame: &Frame, summary: &mut Summary) {
+fn new_episode(car: &Circuit, stepped: &Stepped, frame: &Frame, summary: &mut Summary) {
     let step = frame.step;
     if let Some(verdict) = stepped.reset {
         tracing::warn!(

@@ -8,7 +8,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_scenes::{CommandSource, Drive, LateralError, ResetRule, Teacher, World};
+use mtanet_scenes::{Circuit, CommandSource, LateralError, ResetRule, Teacher, World};
 use serde::{Deserialize, Serialize};
 
 use crate::recorder::Recorder;
@@ -64,7 +64,7 @@ pub fn run(
         after_lost_s: 0.0,
         ..Default::default()
     };
-    let mut car = Drive::new(world, never);
+    let mut car = Circuit::new(world, never);
     let mut done = 0;
     for _ in 0..steps {
         if shutdown.requested() {

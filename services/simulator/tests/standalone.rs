@@ -202,11 +202,7 @@ fn write_mjcf_writes_a_scene_that_another_mujoco_loads() {
 /// generated ones (seeds 0 to 4, and the tightest bend among the first 200 seeds), on the line.
 #[test]
 fn teacher_laps_generated_tracks() {
-    let radius = |seed: u64| {
-        mtanet_scenes::track::generate(seed)
-            .unwrap()
-            .min_bend_radius_m()
-    };
+    let radius = |seed: u64| mtanet_track::generate(seed).unwrap().min_bend_radius_m();
     let tightest = (0..200)
         .min_by(|a, b| radius(*a).total_cmp(&radius(*b)))
         .unwrap();

@@ -210,35 +210,61 @@ pub fn run_with(
         }
         ports.weights.serve_new_subscribers()?;
         watchdog.pet();
-        ports.stats.borrow_mut().tick(
-            learner.updates(),
-            || at.update_time.summary(),
-            |s| {
-                s.replay_sequences = saturate(buffer.len() as u64);
-                s.chunks_lost = saturate(buffer.lost());
-                s.loss = learner.last_loss().map_or(f32::NAN, |l| l as f32);
-                s.weights_published = saturate(learner.published());
-                s.resumed_from_update = learner.resumed_from();
-            },
-        )?;
+        tick_stats(ports, &learner, &buffer, &at)?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
-            tracing::info!(
-                chunks = buffer.received(),
-                lost = buffer.lost(),
-                buffered = buffer.len(),
-                updates = learner.updates(),
-                loss = ?learner.last_loss(),
-                update = %at.update_time.summary(),
-                "running"
-            );
+            log_running(&learner, &buffer, &at);
         }
     }
     if let Some(e) = failure {
         return Err(e.into());
     }
-    // A clean stop loses nothing already delivered: count the chunks still queued (they were
-    // waiting while an update ran) and keep the updates made since the last publish on disk.
+    finish(ports, learner, buffer, at)
+}
+
+/// This process's line on the stats topic (at most once a second).
+fn tick_stats(
+    ports: &Ports,
+    learner: &Learner,
+    buffer: &ReplayBuffer,
+    at: &Progress,
+) -> anyhow::Result<()> {
+    ports.stats.borrow_mut().tick(
+        learner.updates(),
+        || at.update_time.summary(),
+        |s| {
+            s.replay_sequences = saturate(buffer.len() as u64);
+            s.chunks_lost = saturate(buffer.lost());
+            s.loss = learner.last_loss().map_or(f32::NAN, |l| l as f32);
+            s.weights_published = saturate(learner.published());
+            s.resumed_from_update = learner.resumed_from();
+        },
+    )?;
+    Ok(())
+}
+
+/// The periodic progress line.
+fn log_running(learner: &Learner, buffer: &ReplayBuffer, at: &Progress) {
+    tracing::info!(
+        chunks = buffer.received(),
+        lost = buffer.lost(),
+        buffered = buffer.len(),
+        updates = learner.updates(),
+        loss = ?learner.last_loss(),
+        update = %at.update_time.summary(),
+        "running"
+    );
+}
+
+/// A clean stop loses nothing already delivered: the chunks still queued are counted (they
+/// waited while an update ran), a lockstep run makes the updates its data is in for, and the
+/// updates since the last publish are saved.
+fn finish(
+    ports: &Ports,
+    mut learner: Learner,
+    mut buffer: ReplayBuffer,
+    mut at: Progress,
+) -> anyhow::Result<Summary> {
     ports.replay.for_each(|c| {
         buffer.push(c);
         at.schedule.see(buffer.received(), learner.ready(&buffer));

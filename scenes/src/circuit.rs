@@ -1,6 +1,6 @@
 //! One car driven round its track, one control step at a time, with no IPC and no clock: the
 //! simulator service, the standalone teacher run and `eval`'s in-process drive all step the world
-//! through [`Drive`], so a step, a lost car, an episode, a lap and who drove it mean the same in
+//! through [`Circuit`], so a step, a lost car, an episode, a lap and who drove it mean the same in
 //! each, and are counted once, in its [`Score`]. Where a command comes from and when the next step
 //! is due are the caller's.
 
@@ -54,7 +54,7 @@ pub struct Stepped {
     pub switched_to: Option<usize>,
 }
 
-pub struct Drive<'w> {
+pub struct Circuit<'w> {
     /// The tracks driven in turn; `current` is the one the car is on.
     worlds: &'w mut [World],
     current: usize,
@@ -71,7 +71,7 @@ pub struct Drive<'w> {
     score: Score,
 }
 
-impl<'w> Drive<'w> {
+impl<'w> Circuit<'w> {
     pub fn new(world: &'w mut World, rule: ResetRule) -> Self {
         Self::round(std::slice::from_mut(world), rule, 0.0)
     }
@@ -181,7 +181,7 @@ impl<'w> Drive<'w> {
         &mut self.worlds[self.current]
     }
 
-    /// Index of the track the car is on (in the order given to [`Drive::round`]).
+    /// Index of the track the car is on (in the order given to [`Circuit::round`]).
     pub fn track_index(&self) -> usize {
         self.current
     }
