@@ -1,5 +1,5 @@
 //! `mta experiment` end to end with the real binaries: the shipped smoke experiment
-//! (`experiments/smoke.toml`: 2 variants x 1 seed, 60 simulated s learnt on the oval, 20 s
+//! (`ops/experiments/smoke.toml`: 2 variants x 1 seed, 60 simulated s learnt on the oval, 20 s
 //! evaluated on a generated track) into a temporary folder under a private namespace prefix, two
 //! cells side by side (`--jobs 2`). Every run must leave its row, and the table, the summary and
 //! the plots' points must say what the run folders' reports say; a second invocation must find
@@ -32,7 +32,7 @@ fn run(file: &Path, out: &Path, ns: &str, args: &[&str], log: &Path) -> (bool, S
 }
 
 fn experiment(out: &Path, ns: &str, args: &[&str], log: &Path) -> String {
-    let (ok, text) = run(Path::new("experiments/smoke.toml"), out, ns, args, log);
+    let (ok, text) = run(Path::new("ops/experiments/smoke.toml"), out, ns, args, log);
     assert!(ok, "mta experiment failed\n{text}");
     text
 }

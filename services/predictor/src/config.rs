@@ -14,10 +14,12 @@ pub struct PredictorConfig {
     /// SCHED_FIFO priority of the planner's thread when the control loop runs real-time
     /// (always below the loop's): plans come before the trainer and every other normal
     /// program, never before a command (docs/measurements.md, "Sharing the CPU"). 0: the
-    /// normal scheduler at `planner_nice`, as without the privilege.
+    /// normal scheduler at `helpers_nice`, as without the privilege.
     pub planner_priority: i32,
-    /// Niceness of the weights loader's thread, and of the planner's on the normal scheduler.
-    pub planner_nice: i32,
+    /// Niceness of the control loop's helper threads: the weights loader always, the planner on
+    /// the normal scheduler (a config may also call it `planner_nice`).
+    #[serde(alias = "planner_nice")]
+    pub helpers_nice: i32,
     /// `[predictor.reactive]`: the line-sensor rule before the model is trusted, and fallback.
     pub reactive: ReactiveConfig,
     /// `[predictor.exploration]`: random command segments while the reactive rule drives.
@@ -33,7 +35,7 @@ impl Default for PredictorConfig {
             log_every_s: 5.0,
             torch_threads: 1,
             planner_priority: 10,
-            planner_nice: 5,
+            helpers_nice: 5,
             reactive: ReactiveConfig::default(),
             exploration: ExplorationConfig::default(),
             active_inference: AgentConfig::default(),

@@ -101,7 +101,7 @@ fn install(
             summary.weights_installed += 1;
             summary.model_version = version;
             let install_ms = t0.elapsed().as_secs_f64() * 1e3;
-            let probe = policy.model.as_ref().and_then(|m| m.probe);
+            let probe = policy.model().and_then(|m| m.probe);
             tracing::info!(version, ?probe, decode_ms, install_ms, "weights loaded");
         }
         Err(e) => {

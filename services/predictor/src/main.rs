@@ -33,7 +33,7 @@ fn main() -> anyhow::Result<()> {
     let mut policy = mtanet_predictor::policy::Policy::new(&cfg);
     if let Some(path) = &args.checkpoint {
         policy.load_file(path)?;
-        let probe = policy.model.as_ref().and_then(|m| m.probe);
+        let probe = policy.model().and_then(|m| m.probe);
         tracing::info!(path = %path.display(), ?probe, "weights loaded from file");
     }
     let node = create_node(&ipc, "mta-predictor")?;

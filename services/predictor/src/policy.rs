@@ -16,11 +16,17 @@ use crate::loader::{Prepared, prepare};
 pub struct Policy {
     agent: Agent,
     cfg: PredictorConfig,
-    pub model: Option<LiveModel>,
+    model: Option<LiveModel>,
     planner: Option<Threaded<Imagined>>,
 }
 
 impl Policy {
+    /// The model the agent plans through, once weights are installed (read-only: installing
+    /// goes through [`Policy::install`]).
+    pub fn model(&self) -> Option<&LiveModel> {
+        self.model.as_ref()
+    }
+
     pub fn new(cfg: &PredictorConfig) -> Self {
         Self {
             agent: Agent::new(
@@ -122,7 +128,7 @@ impl Policy {
                 let planner = Planner::new(&self.cfg.active_inference.planner)?;
                 let cfg = &self.cfg;
                 let (threads, prio, nice) =
-                    (cfg.torch_threads, cfg.planner_priority, cfg.planner_nice);
+                    (cfg.torch_threads, cfg.planner_priority, cfg.helpers_nice);
                 self.planner = Some(Threaded::spawn(planner, imagined, move || {
                     tch::set_num_threads(threads);
                     planner_priority(prio, nice);

@@ -75,7 +75,7 @@ pub fn run_with(
     let mut watchdog = Watchdog::from_env();
     let mut last_log = Instant::now();
     let mut failure: Option<anyhow::Error> = None;
-    let mut intake = Intake::new(cfg.planner_nice)?;
+    let mut intake = Intake::new(cfg.helpers_nice)?;
     // Ready only now: a simulator started on READY must find this loop answering its first step.
     mtanet_ipc::systemd::ready("predictor running");
 
@@ -121,16 +121,14 @@ pub fn run_with(
                 s.weights_rejected = saturate(summary.weights_rejected);
                 s.weights_held_back = saturate(summary.weights_held_back);
                 s.model_version = summary.model_version;
-                s.model_over_copy_last = policy
-                    .model
-                    .as_ref()
+                s.model_over_copy_last = policy.model()
                     .and_then(|m| m.error_ratio())
                     .map_or(f32::NAN, |r| r as f32);
             },
         )?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
-            let ratio = policy.model.as_ref().and_then(|m| m.error_ratio());
+            let ratio = policy.model().and_then(|m| m.error_ratio());
             let c = policy.stats();
             tracing::info!(
                 answered = summary.commands_sent,
@@ -138,7 +136,7 @@ pub fn run_with(
                 fallbacks = c.fallbacks,
                 late_plans = c.late_plans,
                 model_over_copy_last = ?ratio,
-                probe = ?policy.model.as_ref().and_then(|m| m.probe),
+                probe = ?policy.model().and_then(|m| m.probe),
                 compute = %stats.compute.summary(),
                 plan = %stats.plan.summary(),
                 planning = %policy.planning(),
@@ -149,7 +147,7 @@ pub fn run_with(
     if let Some(e) = failure {
         return Err(e);
     }
-    if let Some(m) = &policy.model {
+    if let Some(m) = policy.model() {
         summary.model_mse = m.model_mse.get();
         summary.copy_last_mse = m.copy_mse.get();
         summary.probe = m.probe;
@@ -175,9 +173,7 @@ fn send_command(
     compute_ns: u64,
     summary: &mut Summary,
 ) -> anyhow::Result<()> {
-    let (ratio, probe) = policy
-        .model
-        .as_ref()
+    let (ratio, probe) = policy.model()
         .map_or((None, None), |m| (m.error_ratio(), m.probe));
     ports.commands.send_with(|c| {
         c.step = obs.step;
@@ -224,9 +220,7 @@ fn answer_observations(
         let decision = policy.act(&obs)?;
         if decision.late_plan {
             // Asked for a segment (frame_skip steps) before the one it was due for.
-            let segment = policy
-                .model
-                .as_ref()
+            let segment = policy.model()
                 .map_or(1, |m| m.config().frame_skip.max(1));
             let asked = obs
                 .stamp_ns

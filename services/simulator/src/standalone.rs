@@ -8,7 +8,8 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use mtanet_ipc::latency::{LatencyStats, LatencySummary};
 use mtanet_ipc::shutdown::Shutdown;
-use mtanet_scenes::{Circuit, CommandSource, LateralError, ResetRule, Teacher, World};
+use mtanet_scenes::{Circuit, LateralError, ResetRule, Teacher, World};
+use mtanet_summaries::CommandSource;
 use serde::{Deserialize, Serialize};
 
 use crate::recorder::Recorder;
