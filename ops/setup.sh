@@ -11,13 +11,14 @@ deps="$root/.deps"
 mkdir -p "$deps"
 log() { printf '[setup] %s\n' "$*"; }
 
-# Pinned wheels with the sha256 PyPI publishes for them; pip refuses a file that differs.
+# Pinned wheels with the sha256 PyPI publishes for them; pip refuses a file that differs. pip and
+# cargo show their own progress (a bar on a terminal, a line per file or crate in a log).
 pip_fetch() { # $1 = stage dir; remaining = "name==version --hash=sha256:..." lines
   local dir=$1; shift
   local req="$dir/requirements.txt"
   mkdir -p "$dir"
   printf '%s\n' "$@" >"$req"
-  python3 -m pip download --quiet --no-deps --only-binary=:all: --require-hashes \
+  python3 -m pip download --progress-bar on --no-deps --only-binary=:all: --require-hashes \
     --python-version 3.11 --implementation cp --abi cp311 \
     --platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 \
     --platform manylinux_2_25_x86_64 --platform manylinux_2_17_x86_64 \
@@ -97,7 +98,7 @@ install_tunnel() {
   fi
   log "iox2-link-tunnel-zenoh 0.10.0: building from crates.io (once, ~10 min on 2 cores)"
   rm -rf "$dst"
-  cargo install --quiet --locked --version 0.10.0 --root "$dst" --target-dir "$deps/stage-iox2" \
+  cargo install --locked --version 0.10.0 --root "$dst" --target-dir "$deps/stage-iox2" \
     iceoryx2-integrations-zenoh-link-tunnel-cli
   rm -rf "$deps/stage-iox2"
   touch "$dst/.complete"

@@ -13,7 +13,9 @@ pub struct ReflexConfig {
     /// Turn added (rad/s, toward the line) when a side sensor sees the line with the middle
     /// one...
     pub gentle: f32,
-    /// ...and when a side sensor sees it alone (0 and 0: no reflex, the plan alone steers).
+    /// ...and when a side sensor sees it alone (0, 0 and 0: no reflex, the plan alone steers).
+    /// The rule's own turn: weaker, the car slips off the line at the exit of tight bends
+    /// (docs/experiments.md, "The reflex at the rule's turn").
     pub strong: f32,
     /// ...and when no sensor sees it, toward the side it was last seen on (the rule's memory;
     /// 0: none). The bar has left the line, most often in a bend tighter than the plan turned.
@@ -27,8 +29,8 @@ impl Default for ReflexConfig {
     fn default() -> Self {
         Self {
             gentle: 1.5,
-            strong: 4.0,
-            search: 0.0,
+            strong: 6.0,
+            search: 6.0,
             strong_max_speed: 5.0,
         }
     }
@@ -109,7 +111,11 @@ mod tests {
         assert!((right.turn + 8.0).abs() < 1e-5, "{right:?}");
         let unknown = Drive::from_wheels(r.apply(fast, [false; 3], 0.0));
         assert_eq!((unknown.speed, unknown.turn), (10.0, -2.0), "no side known: the plan");
-        let off = Drive::from_wheels(ReflexConfig::default().apply(fast, [false; 3], 1.0));
+        let none = ReflexConfig {
+            search: 0.0,
+            ..ReflexConfig::default()
+        };
+        let off = Drive::from_wheels(none.apply(fast, [false; 3], 1.0));
         assert_eq!((off.speed, off.turn), (10.0, -2.0), "search 0: the plan");
     }
 }
