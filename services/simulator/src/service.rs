@@ -65,100 +65,149 @@ pub fn run(
     if lockstep {
         wait_for_peers(ports, cfg, shutdown, &mut watchdog)?;
     }
-    let mut summary = Summary::default();
-    let mut pace = Pace::new(cfg.pace_updates_per_1000_steps, lockstep);
-    let mut clock = Clock::new(period, !lockstep);
-    let mut answers = Answers::new(cfg, period);
-    let mut step_time = LatencyStats::new();
-    let mut chunk = ChunkBuilder::default();
-    // Who decided the command in force (it led to the next frame).
-    let mut applied_source = CommandSource::Teacher;
-    let mut last_log = Instant::now();
+    let mut lp = Loop::new(cfg, period, lockstep);
     let mut car = Circuit::round(worlds, cfg.reset_rule(), cfg.switch_track_after_s);
     while !shutdown.requested() && (cfg.max_steps == 0 || car.steps() < cfg.max_steps) {
         let step = car.steps();
-        pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
-        pace.wait_for_weights(&ports.trainer_status, step, shutdown, &mut watchdog)?;
-        let t0 = clock.begin(step);
+        lp.pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
+        lp.pace.wait_for_weights(&ports.trainer_status, step, shutdown, &mut watchdog)?;
+        let t0 = lp.clock.begin(step);
         let t0_ns = stamp::monotonic_ns();
         let frame = car.sense();
         let obs_stamp = publish_observation(ports, &frame, lockstep)?;
         // The stand-in for a missed command must know where the line was last seen.
         teacher.observe(frame.sensors.line);
-        let (cmd, source) = answers.take(
+        let (cmd, source) = lp.answers.take(
             node,
             ports,
             &frame,
             obs_stamp,
             t0_ns,
             teacher,
-            &mut summary,
+            &mut lp.summary,
             shutdown,
         )?;
         if let Some(t) = trace.as_deref_mut() {
             t.record(step, frame.episode, &frame.sensors.truth, source)?;
         }
         if cfg.replay {
-            chunk.pace = pace.rate();
+            lp.chunk.pace = lp.pace.rate();
             let (s, e, a) = (&frame.sensors, frame.episode, frame.applied);
-            chunk.push(&ports.replay, step, e, s, a, applied_source)?;
+            lp.chunk.push(&ports.replay, step, e, s, a, lp.applied_source)?;
         }
         let stepped = car.step(cmd, source);
+        lp.settle(&car, &frame, &stepped, (cmd, source), teacher);
+        lp.account(step, t0, t0_ns);
+        let done = car.steps();
+        lp.clock.wait_for_tick(done);
+        watchdog.pet();
+        let score = car.score();
+        let fill = |s: &mut ProcessStats| fill_stats(s, score, &lp.summary);
+        let step_time = &lp.step_time;
+        ports
+            .stats
+            .borrow_mut()
+            .tick(done, || step_time.summary(), fill)?;
+        if lp.last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
+            lp.last_log = Instant::now();
+            log_running(done, score, lp.applied_source, &lp.summary, &lp.answers);
+        }
+    }
+    let (summary, sent) = lp.conclude(&car, ports)?;
+    if cfg.replay {
+        linger_for_replay(ports, cfg, sent, shutdown, &mut watchdog)?;
+    }
+    Ok(summary)
+}
+
+/// What the loop carries from one step to the next.
+struct Loop {
+    summary: Summary,
+    pace: Pace,
+    clock: Clock,
+    answers: Answers,
+    step_time: LatencyStats,
+    chunk: ChunkBuilder,
+    /// Who decided the command in force (it led to the next frame).
+    applied_source: CommandSource,
+    last_log: Instant,
+    period: f64,
+}
+
+impl Loop {
+    fn new(cfg: &SimulatorConfig, period: f64, lockstep: bool) -> Self {
+        Self {
+            summary: Summary::default(),
+            pace: Pace::new(cfg.pace_updates_per_1000_steps, lockstep),
+            clock: Clock::new(period, !lockstep),
+            answers: Answers::new(cfg, period),
+            step_time: LatencyStats::new(),
+            chunk: ChunkBuilder::default(),
+            applied_source: CommandSource::Teacher,
+            last_log: Instant::now(),
+            period,
+        }
+    }
+
+    /// Takes in how the world took the step's command: the command in force (a non-finite one
+    /// is refused and the last good one kept) and, at a new episode, its counts and fresh start.
+    fn settle(
+        &mut self,
+        car: &Circuit,
+        frame: &Frame,
+        stepped: &Stepped,
+        (cmd, source): ([f32; 2], CommandSource),
+        teacher: &mut Teacher,
+    ) {
         if stepped.accepted {
-            answers.last = cmd;
-            applied_source = source;
+            self.answers.last = cmd;
+            self.applied_source = source;
         } else {
             tracing::warn!(
-                step,
+                step = frame.step,
                 ?cmd,
                 "rejected a non-finite wheel command; keeping the last good one"
             );
         }
         if stepped.reset.is_some() || stepped.switched_to.is_some() {
-            new_episode(&car, &stepped, &frame, &mut summary);
+            new_episode(car, stepped, frame, &mut self.summary);
             teacher.reset();
-            applied_source = CommandSource::Teacher; // the reset's zero command
-            chunk.discard(); // a training sequence never spans two episodes
+            self.applied_source = CommandSource::Teacher; // the reset's zero command
+            self.chunk.discard(); // a training sequence never spans two episodes
         }
-        // The step's own work (in real time the wait for the next tick comes after).
+    }
+
+    /// Records the step's own work (in real time the wait for the next tick comes after) and
+    /// counts an overrun of its period.
+    fn account(&mut self, step: u64, t0: Instant, t0_ns: u64) {
         let work = t0.elapsed();
-        step_time.record_ns(work.as_nanos() as u64);
-        if work.as_secs_f64() > period {
-            summary.overruns += 1;
-            incident::record(&mut summary.incidents, step, IncidentKind::Overrun, t0_ns);
+        self.step_time.record_ns(work.as_nanos() as u64);
+        if work.as_secs_f64() > self.period {
+            self.summary.overruns += 1;
+            incident::record(&mut self.summary.incidents, step, IncidentKind::Overrun, t0_ns);
         }
-        let done = car.steps();
-        clock.wait_for_tick(done);
-        watchdog.pet();
-        let score = car.score();
-        let fill = |s: &mut ProcessStats| fill_stats(s, score, &summary);
+    }
+
+    /// The run's summary, published as the last figures before lingering (what a watcher
+    /// waits for); also the replay chunks sent.
+    fn conclude(mut self, car: &Circuit, ports: &Ports) -> anyhow::Result<(Summary, u64)> {
+        let steps = car.steps();
+        let score = car.score().clone();
+        let s = &mut self.summary;
+        s.steps = steps;
+        s.replay_chunks_sent = self.chunk.sent;
+        s.rejected_commands = car.rejected_commands();
+        s.pace = self.pace.summary(steps);
+        s.wall_seconds = self.clock.elapsed().as_secs_f64();
+        finish_summary(s, &score, &self.answers, &self.step_time, &self.clock, self.period);
+        let fill = |p: &mut ProcessStats| fill_stats(p, &score, &self.summary);
+        let step_time = &self.step_time;
         ports
             .stats
             .borrow_mut()
-            .tick(done, || step_time.summary(), fill)?;
-        if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
-            last_log = Instant::now();
-            log_running(done, score, applied_source, &summary, &answers);
-        }
+            .publish(steps, || step_time.summary(), fill)?;
+        Ok((self.summary, self.chunk.sent))
     }
-    let steps = car.steps();
-    let score = car.score().clone();
-    summary.steps = steps;
-    summary.replay_chunks_sent = chunk.sent;
-    summary.rejected_commands = car.rejected_commands();
-    summary.pace = pace.summary(steps);
-    summary.wall_seconds = clock.elapsed().as_secs_f64();
-    finish_summary(&mut summary, &score, &answers, &step_time, &clock, period);
-    // The run's last figures, before lingering: what a watcher waits for.
-    let fill = |s: &mut ProcessStats| fill_stats(s, &score, &summary);
-    ports
-        .stats
-        .borrow_mut()
-        .publish(steps, || step_time.summary(), fill)?;
-    if cfg.replay {
-        linger_for_replay(ports, cfg, chunk.sent, shutdown, &mut watchdog)?;
-    }
-    Ok(summary)
 }
 
 /// The periodic progress line.
