@@ -7,6 +7,8 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 ./ops/setup.sh
+echo "[test] every declared dependency is used (ops/check_deps.py)"
+python3 ops/check_deps.py
 log="$root/target/test.log"
 mkdir -p target
 echo "[test] building (release profile; first build ~10 min on 2 cores)"
