@@ -257,7 +257,10 @@ impl Agent {
     ) -> Decision {
         match self.mode {
             Mode::ActiveInference => {
-                let w = self.cfg.reflex.apply(self.committed, t.line, self.reactive.last_side());
+                let w = self
+                    .cfg
+                    .reflex
+                    .apply(self.committed, t.line, self.reactive.last_side());
                 let mut d = self.decided(w, Driver::ActiveInference, plan);
                 d.ahead = self.ahead(t.step, model.frame_skip());
                 d

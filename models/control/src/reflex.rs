@@ -110,7 +110,11 @@ mod tests {
         let right = Drive::from_wheels(r.apply(fast, [false; 3], -1.0));
         assert!((right.turn + 8.0).abs() < 1e-5, "{right:?}");
         let unknown = Drive::from_wheels(r.apply(fast, [false; 3], 0.0));
-        assert_eq!((unknown.speed, unknown.turn), (10.0, -2.0), "no side known: the plan");
+        assert_eq!(
+            (unknown.speed, unknown.turn),
+            (10.0, -2.0),
+            "no side known: the plan"
+        );
         let none = ReflexConfig {
             search: 0.0,
             ..ReflexConfig::default()

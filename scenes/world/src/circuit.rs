@@ -5,8 +5,8 @@
 //! is due are the caller's.
 
 use crate::score::Score;
-use mtanet_summaries::CommandSource;
 use crate::{GroundTruth, Referee, Sensors, Verdict, World};
+use mtanet_summaries::CommandSource;
 
 /// When a car is put back at the start as a new episode (see [`Referee`]).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -121,7 +121,8 @@ pub fn run_with(
                 s.weights_rejected = saturate(summary.weights_rejected);
                 s.weights_held_back = saturate(summary.weights_held_back);
                 s.model_version = summary.model_version;
-                s.model_over_copy_last = policy.model()
+                s.model_over_copy_last = policy
+                    .model()
                     .and_then(|m| m.error_ratio())
                     .map_or(f32::NAN, |r| r as f32);
             },
@@ -173,7 +174,8 @@ fn send_command(
     compute_ns: u64,
     summary: &mut Summary,
 ) -> anyhow::Result<()> {
-    let (ratio, probe) = policy.model()
+    let (ratio, probe) = policy
+        .model()
         .map_or((None, None), |m| (m.error_ratio(), m.probe));
     ports.commands.send_with(|c| {
         c.step = obs.step;
@@ -220,8 +222,7 @@ fn answer_observations(
         let decision = policy.act(&obs)?;
         if decision.late_plan {
             // Asked for a segment (frame_skip steps) before the one it was due for.
-            let segment = policy.model()
-                .map_or(1, |m| m.config().frame_skip.max(1));
+            let segment = policy.model().map_or(1, |m| m.config().frame_skip.max(1));
             let asked = obs
                 .stamp_ns
                 .saturating_sub((segment as f64 * mtanet_ipc::CONTROL_PERIOD_S * 1e9) as u64);

@@ -69,8 +69,10 @@ pub fn run(
     let mut car = Circuit::round(worlds, cfg.reset_rule(), cfg.switch_track_after_s);
     while !shutdown.requested() && (cfg.max_steps == 0 || car.steps() < cfg.max_steps) {
         let step = car.steps();
-        lp.pace.wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
-        lp.pace.wait_for_weights(&ports.trainer_status, step, shutdown, &mut watchdog)?;
+        lp.pace
+            .wait_for_trainer(&ports.trainer_status, step, shutdown, &mut watchdog)?;
+        lp.pace
+            .wait_for_weights(&ports.trainer_status, step, shutdown, &mut watchdog)?;
         let t0 = lp.clock.begin(step);
         let t0_ns = stamp::monotonic_ns();
         let frame = car.sense();
@@ -93,7 +95,8 @@ pub fn run(
         if cfg.replay {
             lp.chunk.pace = lp.pace.rate();
             let (s, e, a) = (&frame.sensors, frame.episode, frame.applied);
-            lp.chunk.push(&ports.replay, step, e, s, a, lp.applied_source)?;
+            lp.chunk
+                .push(&ports.replay, step, e, s, a, lp.applied_source)?;
         }
         let stepped = car.step(cmd, source);
         lp.settle(&car, &frame, &stepped, (cmd, source), teacher);
@@ -184,7 +187,12 @@ impl Loop {
         self.step_time.record_ns(work.as_nanos() as u64);
         if work.as_secs_f64() > self.period {
             self.summary.overruns += 1;
-            incident::record(&mut self.summary.incidents, step, IncidentKind::Overrun, t0_ns);
+            incident::record(
+                &mut self.summary.incidents,
+                step,
+                IncidentKind::Overrun,
+                t0_ns,
+            );
         }
     }
 
@@ -199,7 +207,14 @@ impl Loop {
         s.rejected_commands = car.rejected_commands();
         s.pace = self.pace.summary(steps);
         s.wall_seconds = self.clock.elapsed().as_secs_f64();
-        finish_summary(s, &score, &self.answers, &self.step_time, &self.clock, self.period);
+        finish_summary(
+            s,
+            &score,
+            &self.answers,
+            &self.step_time,
+            &self.clock,
+            self.period,
+        );
         let fill = |p: &mut ProcessStats| fill_stats(p, &score, &self.summary);
         let step_time = &self.step_time;
         ports

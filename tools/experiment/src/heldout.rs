@@ -137,8 +137,8 @@ mod tests {
         };
         let e = ensure(&npz, &other, &mtanet_scenes::SceneConfig::default()).unwrap_err();
         assert!(e.to_string().contains("another --out"), "{e}");
-        let ck =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/oval_lockstep.safetensors");
+        let ck = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../tests/data/oval_lockstep.safetensors");
         let r = ratio(&ck, &npz).unwrap();
         // The committed checkpoint predicts this drive at 0.36-0.38 of copy-last's error; an
         // untrained model or a broken ratio lands far from it.
