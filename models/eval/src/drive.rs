@@ -5,8 +5,8 @@
 use std::time::Instant;
 
 use hdrhistogram::Histogram;
-use mtanet_control::{Agent, AgentModel, AgentStats, Driver, PlanService, Tick};
-use mtanet_scenes::{Circuit, ResetRule, World};
+use mtanet_control::{Agent, AgentModel, AgentStats, Decision, Driver, PlanService, Tick};
+use mtanet_scenes::{Circuit, Frame, ResetRule, World};
 use mtanet_summaries::CommandSource;
 use mtanet_summaries::LatencySummary;
 use serde::{Deserialize, Serialize};
@@ -119,15 +119,7 @@ where
             plan_ns.record(compute.as_nanos() as u64)?;
         }
         if cfg.trace_every > 0 && f.step % cfg.trace_every == 0 {
-            report.trace.push(TracePoint {
-                step: f.step,
-                x: s.truth.x as f32,
-                y: s.truth.y as f32,
-                lateral_m: s.truth.lateral_m as f32,
-                curvature: car.world().track().curvature_at(s.truth.track_s, 0.1) as f32,
-                driver: d.driver,
-                wheels: d.wheels,
-            });
+            report.trace.push(TracePoint::of(&car, &f, &d));
         }
         let stepped = car.step(d.wheels, d.driver.source());
         if let Some(verdict) = stepped.reset {
@@ -145,18 +137,8 @@ where
             break;
         }
         // Progress, a tenth of the drive at a time (a drive of minutes prints nothing else).
-        let tenth = (cfg.max_steps / 10).max(1);
-        if car.steps() % tenth == 0 {
-            let sc = car.score();
-            tracing::info!(
-                "drove {} of {} steps ({:.0}%), {:.0} s wall; laps {} ({} by active inference)",
-                car.steps(),
-                cfg.max_steps,
-                100.0 * car.steps() as f64 / cfg.max_steps as f64,
-                wall.elapsed().as_secs_f64(),
-                sc.laps(),
-                sc.laps_under_active_inference()
-            );
+        if car.steps() % (cfg.max_steps / 10).max(1) == 0 {
+            log_progress(&car, cfg.max_steps, wall);
         }
     }
     let score = car.score();
@@ -172,6 +154,34 @@ where
     report.plan = LatencySummary::of_ns(&plan_ns);
     report.wall_seconds = wall.elapsed().as_secs_f64();
     Ok(report)
+}
+
+fn log_progress(car: &Circuit, max_steps: u64, wall: Instant) {
+    let sc = car.score();
+    tracing::info!(
+        "drove {} of {} steps ({:.0}%), {:.0} s wall; laps {} ({} by active inference)",
+        car.steps(),
+        max_steps,
+        100.0 * car.steps() as f64 / max_steps as f64,
+        wall.elapsed().as_secs_f64(),
+        sc.laps(),
+        sc.laps_under_active_inference()
+    );
+}
+
+impl TracePoint {
+    fn of(car: &Circuit, f: &Frame, d: &Decision) -> Self {
+        let s = &f.sensors;
+        Self {
+            step: f.step,
+            x: s.truth.x as f32,
+            y: s.truth.y as f32,
+            lateral_m: s.truth.lateral_m as f32,
+            curvature: car.world().track().curvature_at(s.truth.track_s, 0.1) as f32,
+            driver: d.driver,
+            wheels: d.wheels,
+        }
+    }
 }
 
 impl SeesWorld for mtanet_control::Blind {}

@@ -99,6 +99,38 @@ pub fn spearman(a: &[f32], b: &[f32]) -> Option<f64> {
 }
 
 /// Probes `checkpoint` (bytes) on `scene`. `agent` gives the preference settings and cost.
+/// The reactive rule with exploration (active inference off): the agent only steers and learns
+/// the preference, exactly as in the stack before the switch.
+fn rule_driver(agent_cfg: &AgentConfig, cfg: &ProbeConfig, period_s: f32) -> Agent {
+    let driving = AgentConfig {
+        enabled: false,
+        ..agent_cfg.clone()
+    };
+    let exploration = ExplorationConfig {
+        seed: cfg.seed,
+        ..Default::default()
+    };
+    Agent::new(
+        &driving,
+        &ReactiveConfig::default(),
+        &exploration,
+        FrameShape::CAR,
+        period_s,
+    )
+}
+
+/// Every speed with every turn, held for the probe's horizon.
+fn candidates(cfg: &ProbeConfig) -> Vec<Vec<Drive>> {
+    cfg.speeds
+        .iter()
+        .flat_map(|&v| {
+            cfg.turns
+                .iter()
+                .map(move |&t| vec![Drive::new(v, t); cfg.horizon.max(1)])
+        })
+        .collect()
+}
+
 pub fn probe(
     scene: &SceneConfig,
     checkpoint: &[u8],
@@ -111,36 +143,12 @@ pub fn probe(
     let skip = live.frame_skip().unwrap_or(1);
     let mut world = World::new(scene)?;
     let mut oracle = OracleImagination::new(scene, skip)?;
-    // The reactive rule with exploration drives (active inference off): the agent only steers
-    // and learns the preference, exactly as in the stack before the switch.
-    let driving = AgentConfig {
-        enabled: false,
-        ..agent_cfg.clone()
-    };
-    let exploration = ExplorationConfig {
-        seed: cfg.seed,
-        ..Default::default()
-    };
-    let mut agent = Agent::new(
-        &driving,
-        &ReactiveConfig::default(),
-        &exploration,
-        FrameShape::CAR,
-        world.config().control_period_s as f32,
-    );
+    let mut agent = rule_driver(agent_cfg, cfg, world.config().control_period_s as f32);
     let mut none = mtanet_control::Inline::new(
         mtanet_control::Planner::new(&agent_cfg.planner)?,
         NoImagination,
     );
-    let cands: Vec<Vec<Drive>> = cfg
-        .speeds
-        .iter()
-        .flat_map(|&v| {
-            cfg.turns
-                .iter()
-                .map(move |&t| vec![Drive::new(v, t); cfg.horizon.max(1)])
-        })
-        .collect();
+    let cands = candidates(cfg);
     let (mut rhos, mut rhos_total, mut top2) = (Vec::new(), Vec::new(), 0usize);
     let mut model_ticks = 0usize;
     let mut episode = 0u32;

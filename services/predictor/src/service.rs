@@ -111,43 +111,63 @@ pub fn run_with(
         }
         intake.install_due(None, &mut policy, &mut summary)?;
         watchdog.pet();
-        ports.stats.borrow_mut().tick(
-            summary.commands_sent,
-            || stats.compute.summary(),
-            |s| {
-                s.driver = stats.source;
-                s.fallbacks = saturate(policy.stats().fallbacks);
-                s.weights_installed = saturate(summary.weights_installed);
-                s.weights_rejected = saturate(summary.weights_rejected);
-                s.weights_held_back = saturate(summary.weights_held_back);
-                s.model_version = summary.model_version;
-                s.model_over_copy_last = policy
-                    .model()
-                    .and_then(|m| m.error_ratio())
-                    .map_or(f32::NAN, |r| r as f32);
-            },
-        )?;
+        publish_stats(ports, &policy, &summary, &stats)?;
         if last_log.elapsed().as_secs_f64() >= cfg.log_every_s {
             last_log = Instant::now();
-            let ratio = policy.model().and_then(|m| m.error_ratio());
-            let c = policy.stats();
-            tracing::info!(
-                answered = summary.commands_sent,
-                active_inference = c.active_inference_steps,
-                fallbacks = c.fallbacks,
-                late_plans = c.late_plans,
-                model_over_copy_last = ?ratio,
-                probe = ?policy.model().and_then(|m| m.probe),
-                compute = %stats.compute.summary(),
-                plan = %stats.plan.summary(),
-                planning = %policy.planning(),
-                "running"
-            );
+            log_progress(&policy, &summary, &stats);
         }
     }
-    if let Some(e) = failure {
-        return Err(e);
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(conclude(summary, &policy, &stats)),
     }
+}
+
+/// The process's stats sample, at most every stats period.
+fn publish_stats(
+    ports: &Ports,
+    policy: &Policy,
+    summary: &Summary,
+    stats: &StepStats,
+) -> anyhow::Result<()> {
+    ports.stats.borrow_mut().tick(
+        summary.commands_sent,
+        || stats.compute.summary(),
+        |s| {
+            s.driver = stats.source;
+            s.fallbacks = saturate(policy.stats().fallbacks);
+            s.weights_installed = saturate(summary.weights_installed);
+            s.weights_rejected = saturate(summary.weights_rejected);
+            s.weights_held_back = saturate(summary.weights_held_back);
+            s.model_version = summary.model_version;
+            s.model_over_copy_last = policy
+                .model()
+                .and_then(|m| m.error_ratio())
+                .map_or(f32::NAN, |r| r as f32);
+        },
+    )?;
+    Ok(())
+}
+
+fn log_progress(policy: &Policy, summary: &Summary, stats: &StepStats) {
+    let ratio = policy.model().and_then(|m| m.error_ratio());
+    let c = policy.stats();
+    tracing::info!(
+        answered = summary.commands_sent,
+        active_inference = c.active_inference_steps,
+        fallbacks = c.fallbacks,
+        late_plans = c.late_plans,
+        model_over_copy_last = ?ratio,
+        probe = ?policy.model().and_then(|m| m.probe),
+        compute = %stats.compute.summary(),
+        plan = %stats.plan.summary(),
+        planning = %policy.planning(),
+        "running"
+    );
+}
+
+/// The summary at exit: the loop's counts with the policy's and the latencies'.
+fn conclude(mut summary: Summary, policy: &Policy, stats: &StepStats) -> Summary {
     if let Some(m) = policy.model() {
         summary.model_mse = m.model_mse.get();
         summary.copy_last_mse = m.copy_mse.get();
@@ -162,7 +182,7 @@ pub fn run_with(
     summary.compute_hist = stats.compute.histogram();
     summary.obs_to_predictor = stats.receive.summary();
     summary.obs_to_predictor_hist = stats.receive.histogram();
-    Ok(summary)
+    summary
 }
 
 /// The command answering `obs`, with the plan it comes from and the model's health.

@@ -71,30 +71,7 @@ impl Answers {
         let predictor = ports.commands.publishers() > 0;
         // Without a predictor only look (no wait): one that answered and left still counts.
         let wait = if predictor { self.wait } else { Duration::ZERO };
-        let stale = &mut summary.stale_commands;
-        let mut answer = await_command(ports, frame.step, wait, shutdown, stale)?;
-        // Lockstep waits for a late answer as long as the predictor lives: a stand-in would
-        // make the run depend on the machine's speed (an evaluation run on a loaded machine
-        // would be driven partly by the teacher). A dead predictor's node is cleaned and ends it.
-        let since = Instant::now();
-        let mut said = false;
-        while answer.is_none()
-            && self.lockstep
-            && !shutdown.requested()
-            && ports.commands.publishers() > 0
-        {
-            if clean_dead_nodes(node, &mut summary.dead_nodes_cleaned) > 0 {
-                break;
-            }
-            if !said && since.elapsed() > LONG_WAIT {
-                said = true;
-                tracing::warn!(
-                    step = frame.step,
-                    "lockstep: still waiting for the predictor's command"
-                );
-            }
-            answer = await_command(ports, frame.step, wait, shutdown, stale)?;
-        }
+        let answer = self.receive(node, ports, frame.step, wait, summary, shutdown)?;
         if let Some((c, received_ns)) = answer {
             self.misses_in_a_row = 0;
             if c.step == frame.step {
@@ -111,6 +88,53 @@ impl Answers {
             summary.teacher_steps += 1;
             return Ok((teacher.act(&frame.sensors), CommandSource::Teacher));
         }
+        self.stand_in(node, frame, begun_ns, teacher, summary)
+    }
+
+    /// The predictor's command for `step`, waited for up to `wait`; in lockstep for as long as
+    /// the predictor lives: a stand-in would make the run depend on the machine's speed (an
+    /// evaluation run on a loaded machine would be driven partly by the teacher). A dead
+    /// predictor's node is cleaned and ends the wait.
+    fn receive(
+        &mut self,
+        node: &Node<ipc::Service>,
+        ports: &Ports,
+        step: u64,
+        wait: Duration,
+        summary: &mut Summary,
+        shutdown: &Shutdown,
+    ) -> anyhow::Result<Option<(Command, u64)>> {
+        let stale = &mut summary.stale_commands;
+        let mut answer = await_command(ports, step, wait, shutdown, stale)?;
+        let since = Instant::now();
+        let mut said = false;
+        while answer.is_none()
+            && self.lockstep
+            && !shutdown.requested()
+            && ports.commands.publishers() > 0
+        {
+            if clean_dead_nodes(node, &mut summary.dead_nodes_cleaned) > 0 {
+                break;
+            }
+            if !said && since.elapsed() > LONG_WAIT {
+                said = true;
+                tracing::warn!(step, "lockstep: still waiting for the predictor's command");
+            }
+            answer = await_command(ports, step, wait, shutdown, stale)?;
+        }
+        Ok(answer)
+    }
+
+    /// No answer in time from a predictor that is there: the plan its last command carried,
+    /// or else the miss policy's command.
+    fn stand_in(
+        &mut self,
+        node: &Node<ipc::Service>,
+        frame: &Frame,
+        begun_ns: u64,
+        teacher: &mut Teacher,
+        summary: &mut Summary,
+    ) -> anyhow::Result<([f32; 2], CommandSource)> {
         self.misses_in_a_row += 1;
         // A paused predictor: in real time the car goes on with the plan its last command
         // carried (lockstep waits for every command, or the predictor is dead).

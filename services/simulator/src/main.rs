@@ -1,14 +1,16 @@
-//! `mta-simulator`: the MuJoCo line-tracer world as an iceoryx2 service, or alone with the
-//! teacher driving (`--teacher-only`) for tests and data collection.
+//! `mta-simulator`: the MuJoCo line-tracer world as an iceoryx2 service; or alone with the
+//! teacher driving (`--teacher-only`) for tests and data collection; or `--write-mjcf` to look
+//! at the scene in another MuJoCo.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Parser;
 use mtanet_ipc::cli::CommonArgs;
-use mtanet_ipc::node::create_node;
+use mtanet_ipc::node::{IpcConfig, create_node};
+use mtanet_ipc::shutdown::Shutdown;
 use mtanet_ipc::{logging, systemd};
-use mtanet_scenes::{Teacher, World};
+use mtanet_scenes::{SceneConfig, Teacher, World};
 use mtanet_simulator::config::{Mode, SimulatorConfig};
 use mtanet_simulator::{service, standalone};
 
@@ -80,8 +82,22 @@ fn main() -> anyhow::Result<()> {
     logging::init();
     let args = Args::parse();
     let (mut cfg, ipc, shutdown): (SimulatorConfig, _, _) = args.common.start("simulator")?;
-    if let Some(t) = args.track {
-        cfg.scene.track = t;
+    apply_flags(&args, &mut cfg);
+    let mut teacher = Teacher::new(&cfg.teacher);
+    if let Some(path) = &args.write_mjcf {
+        return write_mjcf(&cfg.scene, path);
+    }
+    if args.teacher_only {
+        return teacher_only(&args, &cfg, &mut teacher, &shutdown);
+    }
+    (cfg.validate()).map_err(|e| args.common.invalid_config("simulator", e))?;
+    serve(&args, &cfg, &ipc, &mut teacher, &shutdown)
+}
+
+/// The command line's overrides of the config file.
+fn apply_flags(args: &Args, cfg: &mut SimulatorConfig) {
+    if let Some(t) = &args.track {
+        cfg.scene.track = t.clone();
     }
     if let Some(s) = args.seed {
         cfg.teacher.seed = s;
@@ -99,50 +115,62 @@ fn main() -> anyhow::Result<()> {
     if let Some(p) = args.pace {
         cfg.pace_updates_per_1000_steps = p;
     }
-
     if args.seed.is_some() && cfg.teacher.noise_std == 0.0 {
         // Without noise the teacher is deterministic: every seed records the same data.
         tracing::warn!(
             "--seed has no effect while the teacher's noise is 0: add --noise STD (rad/s) for varied data"
         );
     }
-    let (scene, teacher_cfg) = (&cfg.scene, &cfg.teacher);
-    let mut teacher = Teacher::new(teacher_cfg);
-    if let Some(path) = &args.write_mjcf {
-        // Written only after MuJoCo compiled it (World::new): what is on disk loads.
-        let world = World::new(scene).context("loading the scene (simulator.scene.track)")?;
-        mtanet_files::write_bytes(path, world.mjcf().as_bytes())?;
-        println!("{}: the scene of {}", path.display(), scene.track.display());
-        return Ok(());
-    }
+}
 
-    if args.teacher_only {
-        // The rule alone drives the first track only.
-        let world = &mut World::new(scene).context("loading the scene (simulator.scene.track)")?;
-        let run = standalone::StandaloneRun {
-            sim_seconds: args.sim_seconds.unwrap_or_default(),
-            record: args.record,
-            seq_len: args.seq_len as usize,
-            seed: teacher_cfg.seed,
-        };
-        let rep = standalone::run(world, &mut teacher, &run, &shutdown)?;
-        tracing::info!(
-            laps = rep.laps,
-            lateral_mean_m = rep.lateral_error_m.mean,
-            lateral_max_m = rep.lateral_error_m.max,
-            rtf = rep.real_time_factor,
-            "teacher run done"
-        );
-        let path = args
-            .report
-            .expect("clap requires --report with --teacher-only");
-        mtanet_files::write_json(&path, &rep)?;
-        return Ok(());
-    }
+/// `--write-mjcf`: written only after MuJoCo compiled it (World::new), so what is on disk loads.
+fn write_mjcf(scene: &SceneConfig, path: &Path) -> anyhow::Result<()> {
+    let world = World::new(scene).context("loading the scene (simulator.scene.track)")?;
+    mtanet_files::write_bytes(path, world.mjcf().as_bytes())?;
+    println!("{}: the scene of {}", path.display(), scene.track.display());
+    Ok(())
+}
 
-    (cfg.validate()).map_err(|e| args.common.invalid_config("simulator", e))?;
-    let mut worlds = load_worlds(&cfg)?;
-    let node = create_node(&ipc, "mta-simulator")?;
+/// `--teacher-only`: the rule alone drives the first track, no IPC.
+fn teacher_only(
+    args: &Args,
+    cfg: &SimulatorConfig,
+    teacher: &mut Teacher,
+    shutdown: &Shutdown,
+) -> anyhow::Result<()> {
+    let world = &mut World::new(&cfg.scene).context("loading the scene (simulator.scene.track)")?;
+    let run = standalone::StandaloneRun {
+        sim_seconds: args.sim_seconds.unwrap_or_default(),
+        record: args.record.clone(),
+        seq_len: args.seq_len as usize,
+        seed: cfg.teacher.seed,
+    };
+    let rep = standalone::run(world, teacher, &run, shutdown)?;
+    tracing::info!(
+        laps = rep.laps,
+        lateral_mean_m = rep.lateral_error_m.mean,
+        lateral_max_m = rep.lateral_error_m.max,
+        rtf = rep.real_time_factor,
+        "teacher run done"
+    );
+    let path = args
+        .report
+        .as_ref()
+        .expect("clap requires --report with --teacher-only");
+    mtanet_files::write_json(path, &rep)?;
+    Ok(())
+}
+
+/// The service: steps the worlds, answering to the predictor and feeding the trainer.
+fn serve(
+    args: &Args,
+    cfg: &SimulatorConfig,
+    ipc: &IpcConfig,
+    teacher: &mut Teacher,
+    shutdown: &Shutdown,
+) -> anyhow::Result<()> {
+    let mut worlds = load_worlds(cfg)?;
+    let node = create_node(ipc, "mta-simulator")?;
     let ports = service::Ports::open(&node)?;
     systemd::ready("simulator running");
     tracing::info!(namespace = %ipc.namespace, mode = ?cfg.mode, "simulator service started");
@@ -155,9 +183,9 @@ fn main() -> anyhow::Result<()> {
         &node,
         &ports,
         &mut worlds,
-        &mut teacher,
-        &cfg,
-        &shutdown,
+        teacher,
+        cfg,
+        shutdown,
         trace.as_mut(),
     );
     systemd::stopping();

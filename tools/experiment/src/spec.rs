@@ -181,6 +181,28 @@ impl Spec {
                 format!("= {v}: at least one step (0.02 s)"),
             ));
         }
+        self.check_variants(&bad)?;
+        self.check_tracks(&bad)?;
+        let b = &self.bootstrap;
+        if b.resamples < 100 || !(0.5..1.0).contains(&b.confidence) {
+            let m = format!(
+                "resamples {} (>= 100), confidence {} (in [0.5, 1))",
+                b.resamples, b.confidence
+            );
+            return Err(bad("[bootstrap]", m));
+        }
+        if !at_least(self.analysis.sim_seconds, 60.0) {
+            let m = format!("= {}: at least 60 s", self.analysis.sim_seconds);
+            return Err(bad("analysis.sim_seconds", m));
+        }
+        if !at_least(self.heldout.sim_seconds, 10.0) {
+            let m = format!("= {}: at least 10 s", self.heldout.sim_seconds);
+            return Err(bad("heldout.sim_seconds", m));
+        }
+        Ok(())
+    }
+
+    fn check_variants(&self, bad: &dyn Fn(&str, String) -> SpecError) -> Result<(), SpecError> {
         if self.variants.is_empty() {
             return Err(bad("[[variant]]", "none: give at least one".into()));
         }
@@ -197,6 +219,11 @@ impl Spec {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Every track loads, and no evaluation track is learnt on or named twice.
+    fn check_tracks(&self, bad: &dyn Fn(&str, String) -> SpecError) -> Result<(), SpecError> {
         let tracks = std::iter::once(("learn_track", &self.learn_track))
             .chain(
                 self.learn_also_tracks
@@ -235,22 +262,6 @@ impl Spec {
                 );
                 return Err(bad("eval_tracks", m));
             }
-        }
-        let b = &self.bootstrap;
-        if b.resamples < 100 || !(0.5..1.0).contains(&b.confidence) {
-            let m = format!(
-                "resamples {} (>= 100), confidence {} (in [0.5, 1))",
-                b.resamples, b.confidence
-            );
-            return Err(bad("[bootstrap]", m));
-        }
-        if !at_least(self.analysis.sim_seconds, 60.0) {
-            let m = format!("= {}: at least 60 s", self.analysis.sim_seconds);
-            return Err(bad("analysis.sim_seconds", m));
-        }
-        if !at_least(self.heldout.sim_seconds, 10.0) {
-            let m = format!("= {}: at least 10 s", self.heldout.sim_seconds);
-            return Err(bad("heldout.sim_seconds", m));
         }
         Ok(())
     }

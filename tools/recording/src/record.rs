@@ -79,82 +79,117 @@ fn drain<T: std::fmt::Debug + Copy + ZeroCopySend>(
     Ok(batch)
 }
 
+/// The topics being recorded: a port for each one asked for.
+struct Taps {
+    obs: Option<Receiver<Observation>>,
+    cmds: Option<Receiver<Command>>,
+    replay: Option<Receiver<ReplayChunk>>,
+    status: Option<Receiver<TrainerStatus>>,
+    weights: Option<WeightsReceiver>,
+}
+
+/// Steps skipped between recorded observations and between recorded commands.
+#[derive(Default)]
+struct StepGaps {
+    obs: Gaps,
+    cmds: Gaps,
+}
+
+impl Taps {
+    fn open(node: &Node<ipc::Service>, topics: &[String]) -> anyhow::Result<Self> {
+        let want = |t: &str| topics.is_empty() || topics.iter().any(|x| x == t);
+        Ok(Self {
+            obs: want("observation")
+                .then(|| Receiver::open_deep(node, names::OBSERVATION, TopicShape::STEP))
+                .transpose()?,
+            cmds: want("command")
+                .then(|| Receiver::open_deep(node, names::COMMAND, TopicShape::STEP))
+                .transpose()?,
+            replay: want("replay")
+                .then(|| Receiver::open(node, names::REPLAY, TopicShape::REPLAY))
+                .transpose()?,
+            status: want("trainer_status")
+                .then(|| Receiver::open(node, names::TRAINER_STATUS, TopicShape::STATUS))
+                .transpose()?,
+            weights: want("weights")
+                .then(|| WeightsReceiver::open(node))
+                .transpose()?,
+        })
+    }
+
+    /// Wakes `waitset` on every topic that notifies (the trainer's status only publishes).
+    fn attach<'w>(
+        &'w self,
+        waitset: &'w WaitSet<ipc::Service>,
+    ) -> anyhow::Result<Vec<WaitSetGuard<'w, 'w, ipc::Service>>> {
+        let mut guards = Vec::new();
+        let listeners = [
+            self.obs.as_ref().map(|r| r.listener()),
+            self.cmds.as_ref().map(|r| r.listener()),
+            self.replay.as_ref().map(|r| r.listener()),
+            self.weights.as_ref().map(|r| r.listener()),
+        ];
+        for l in listeners.into_iter().flatten() {
+            guards.push(waitset.attach_notification(l)?);
+        }
+        Ok(guards)
+    }
+
+    /// Writes everything pending on every topic, whichever woke the loop.
+    fn drain_into(
+        &self,
+        out: &mut RecordingWriter<impl std::io::Write + std::io::Seek>,
+        gaps: &mut StepGaps,
+        blobs: bool,
+    ) -> anyhow::Result<()> {
+        for o in drain(&self.obs)? {
+            gaps.obs.see(o.step);
+            out.observation(&o)?;
+        }
+        for c in drain(&self.cmds)? {
+            gaps.cmds.see(c.step);
+            out.command(&c)?;
+        }
+        for c in drain(&self.replay)? {
+            out.replay(&c)?;
+        }
+        if let Some(r) = &self.status
+            && let Some(s) = r.latest()?
+        {
+            out.trainer_status(&s)?;
+        }
+        if let Some(w) = &self.weights {
+            let got = w.latest(|h, bytes| (*h, blobs.then(|| bytes.to_vec())))?;
+            if let Some((h, b)) = got {
+                out.weights(&h, b.as_deref())?;
+            }
+        }
+        Ok(())
+    }
+}
+
 pub fn run(args: RecordArgs) -> anyhow::Result<()> {
     let (_, ipc) = args.common.load()?;
     let shutdown = Shutdown::install()?;
-    let want = |t: &str| args.topics.is_empty() || args.topics.iter().any(|x| x == t);
     let node = create_node(&ipc, &format!("mta-record-{}", std::process::id()))?;
-    let obs = want("observation")
-        .then(|| Receiver::<Observation>::open_deep(&node, names::OBSERVATION, TopicShape::STEP))
-        .transpose()?;
-    let cmds = want("command")
-        .then(|| Receiver::<Command>::open_deep(&node, names::COMMAND, TopicShape::STEP))
-        .transpose()?;
-    let replay = want("replay")
-        .then(|| Receiver::<ReplayChunk>::open(&node, names::REPLAY, TopicShape::REPLAY))
-        .transpose()?;
-    let status = want("trainer_status")
-        .then(|| Receiver::<TrainerStatus>::open(&node, names::TRAINER_STATUS, TopicShape::STATUS))
-        .transpose()?;
-    let weights = want("weights")
-        .then(|| WeightsReceiver::open(&node))
-        .transpose()?;
+    let taps = Taps::open(&node, &args.topics)?;
+    let mut gaps = StepGaps::default();
     let waitset = create_waitset()?;
-    let mut guards = Vec::new();
-    if let Some(r) = &obs {
-        guards.push(waitset.attach_notification(r.listener())?);
-    }
-    if let Some(r) = &cmds {
-        guards.push(waitset.attach_notification(r.listener())?);
-    }
-    if let Some(r) = &replay {
-        guards.push(waitset.attach_notification(r.listener())?);
-    }
-    if let Some(r) = &weights {
-        guards.push(waitset.attach_notification(r.listener())?);
-    }
+    let _guards = taps.attach(&waitset)?;
     let mut out = RecordingWriter::create(&args.out)?;
     systemd::ready("recording");
     tracing::info!(out = %args.out.display(), namespace = %ipc.namespace, "recording");
     let start = Instant::now();
     let mut last_flush = Instant::now();
-    let (mut obs_gaps, mut cmd_gaps) = (Gaps::default(), Gaps::default());
     let mut failure = None;
     while !shutdown.requested()
         && (args.seconds <= 0.0 || start.elapsed().as_secs_f64() < args.seconds)
     {
-        // Every wake-up drains every topic below, whichever woke it.
         waitset.wait_and_process_once_with_timeout(
             |_| CallbackProgression::Continue,
             Duration::from_millis(100),
         )?;
-        let mut step = || -> anyhow::Result<()> {
-            for o in drain(&obs)? {
-                obs_gaps.see(o.step);
-                out.observation(&o)?;
-            }
-            for c in drain(&cmds)? {
-                cmd_gaps.see(c.step);
-                out.command(&c)?;
-            }
-            for c in drain(&replay)? {
-                out.replay(&c)?;
-            }
-            if let Some(r) = &status
-                && let Some(s) = r.latest()?
-            {
-                out.trainer_status(&s)?;
-            }
-            if let Some(w) = &weights {
-                let blob = args.weight_blobs;
-                let got = w.latest(|h, bytes| (*h, blob.then(|| bytes.to_vec())))?;
-                if let Some((h, b)) = got {
-                    out.weights(&h, b.as_deref())?;
-                }
-            }
-            Ok(())
-        };
-        if let Err(e) = step() {
+        if let Err(e) = taps.drain_into(&mut out, &mut gaps, args.weight_blobs) {
             failure = Some(e);
             break;
         }
@@ -172,8 +207,8 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
             .collect(),
         bytes: std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
         seconds: start.elapsed().as_secs_f64(),
-        missed_observations: obs_gaps.missed,
-        missed_commands: cmd_gaps.missed,
+        missed_observations: gaps.obs.missed,
+        missed_commands: gaps.cmds.missed,
     };
     systemd::stopping();
     tracing::info!(summary = %serde_json::to_string(&summary)?, "recording closed");
@@ -181,19 +216,5 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
     match failure {
         Some(e) => Err(e),
         None => Ok(()),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn gaps_count_skipped_steps_and_not_a_restart() {
-        let mut g = Gaps::default();
-        for s in [0, 1, 2, 5, 6, 0, 1, 3] {
-            g.see(s);
-        }
-        assert_eq!(g.missed, 2 + 1);
     }
 }

@@ -187,16 +187,7 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
     let sup: Option<SupervisorSummary> = read_json(&dir.join(run_folder::SUPERVISOR))?;
     let c = &sim.control;
     let lat = |k: &str| c.lateral_mean_m.get(k).copied();
-    let mut latency = BTreeMap::new();
-    latency.insert("step".into(), sim.step_time);
-    latency.insert("round_trip".into(), sim.round_trip);
-    if sim.tick_late.count > 0 {
-        latency.insert("tick_late".into(), sim.tick_late);
-    }
-    if let Some(p) = &pred {
-        latency.insert("predictor".into(), p.compute);
-        latency.insert("plan".into(), p.plan);
-    }
+    let latency = latency_table(&sim, pred.as_ref());
     let report = Report {
         steps: sim.steps,
         sim_seconds: sim.sim_seconds,
@@ -253,10 +244,40 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
         restarts: sup.map(|s| s.restarts).unwrap_or_default(),
     };
     mtanet_files::write_json(&dir.join(run_folder::REPORT), &report)?;
-    if let Err(e) = pictures::lap_trace(dir, &info.track) {
+    draw_pictures(dir, &info.track, &sim, pred.as_ref(), figure)?;
+    Ok(report)
+}
+
+/// The latencies report.json lists: the simulator's, and the predictor's when it reported.
+fn latency_table(
+    sim: &SimulatorSummary,
+    pred: Option<&PredictorSummary>,
+) -> BTreeMap<String, LatencySummary> {
+    let mut latency = BTreeMap::new();
+    latency.insert("step".into(), sim.step_time);
+    latency.insert("round_trip".into(), sim.round_trip);
+    if sim.tick_late.count > 0 {
+        latency.insert("tick_late".into(), sim.tick_late);
+    }
+    if let Some(p) = pred {
+        latency.insert("predictor".into(), p.compute);
+        latency.insert("plan".into(), p.plan);
+    }
+    latency
+}
+
+/// The run's pictures; one that cannot be drawn is a warning, not a failed report.
+fn draw_pictures(
+    dir: &Path,
+    track: &Path,
+    sim: &SimulatorSummary,
+    pred: Option<&PredictorSummary>,
+    figure: &FigureStrip,
+) -> anyhow::Result<()> {
+    if let Err(e) = pictures::lap_trace(dir, track) {
         tracing::warn!("no lap trace picture: {e:#}");
     }
-    pictures::latency_from(dir, &sim, pred.as_ref())?;
+    pictures::latency_from(dir, sim, pred)?;
     for (name, draw) in [
         (
             "learning.png",
@@ -270,9 +291,9 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
     }
     let model = dir.join(run_folder::MODEL);
     if model.exists()
-        && let Err(e) = figure(&model, &info.track, &dir.join("figure.png"))
+        && let Err(e) = figure(&model, track, &dir.join("figure.png"))
     {
         tracing::warn!("no figure strip: {e:#}");
     }
-    Ok(report)
+    Ok(())
 }
