@@ -1,10 +1,8 @@
 //! Closed-loop evaluation without IPC: an [`mtanet_control::Agent`] drives a MuJoCo
 //! [`mtanet_scenes::World`] in-process, with the world itself ([`oracle`]) or a learned
-//! checkpoint as its model; the counterfactual probe of a learned model; and the model's figure
-//! strip on a drive of a track.
+//! checkpoint as its model; and the counterfactual probe of a learned model.
 
 pub mod drive;
-pub mod figure;
 pub mod oracle;
 pub mod probe;
 

@@ -1,5 +1,5 @@
 //! MTA-PredNet (multiple-timescale, action-modulated PredNet) in tch: the model, its training,
-//! checkpoints, data sets, analysis and figures.
+//! checkpoints, data sets and the layers' timescales.
 //!
 //! - Predictor: build from a checkpoint (`checkpoint::from_bytes(&bytes)?.build()?`), keep a
 //!   [`State`], call [`MtaPredNet::step`] with each frame and the action that led to it, and
@@ -7,7 +7,8 @@
 //!   `tch::no_grad_guard()` so the state carries no autograd graph.
 //! - Trainer: [`Trainer::update`] on `[B, T, H, W]` windows (or [`Trainer::update_from`] to carry
 //!   the state across windows), [`Trainer::checkpoint_bytes`] to publish weights.
-//! - Offline: `mta train` / `mta synth`, [`analysis::analyse`] for metrics, layer timescales and figure.
+//! - Offline: `mta train` / `mta synth`, [`analysis::timescales`] for the layers' timescales
+//!   (the figure strip and the held-out report are `mtanet-analysis`'s).
 //!
 //! libtorch should run with one intra-op thread (`tch::set_num_threads(1)`): on 2 shared cores
 //! two threads collapse 5-50x when another process holds a core (docs/measurements.md), and at 8x12 the ops
@@ -21,7 +22,6 @@ pub mod config;
 
 pub mod data;
 pub mod eval;
-pub mod figure;
 pub mod layer;
 pub mod live;
 pub mod model;

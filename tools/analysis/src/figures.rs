@@ -19,9 +19,9 @@ pub fn write(
 ) -> anyhow::Result<()> {
     timescales(&out.join("timescales.png"), a)?;
     context(&out.join("context.png"), a)?;
-    let frames = mtanet_models::figure::DEFAULT_FRAMES;
+    let frames = crate::figure::DEFAULT_FRAMES;
     let last = (*frames.iter().max().unwrap_or(&1) + 1).min(seq.truth.len()) as i64;
-    mtanet_models::analysis::figure_strip(
+    crate::figure::figure_strip(
         model,
         &seq.images.narrow(0, 0, last),
         &seq.actions.narrow(0, 0, last),

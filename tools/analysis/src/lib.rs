@@ -13,8 +13,11 @@
 //! and draws the paper's figure strip (the first unit's output of every layer at frames 1, 10,
 //! 50, 100, 130) beside the autocorrelations. Everything lands in `analysis.json` and PNGs.
 
+pub mod figure;
 mod figures;
+pub mod held_out;
 pub mod readout;
+pub mod strip;
 mod table;
 pub mod targets;
 

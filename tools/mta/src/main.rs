@@ -82,7 +82,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Up(a) => up::run(a),
         Cmd::Record(a) => record::run(a),
         Cmd::Replay(a) => replay::run(a),
-        Cmd::Report(a) => report::run(a, &mtanet_eval::figure::strip_on_track),
+        Cmd::Report(a) => report::run(a, &mtanet_analysis::strip::strip_on_track),
         Cmd::Plot(a) => plot::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),

@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use mtanet_models::analysis::analyse;
+use mtanet_analysis::figure::DEFAULT_FRAMES;
+use mtanet_analysis::held_out::analyse;
 use mtanet_models::checkpoint;
 use mtanet_models::data::Dataset;
-use mtanet_models::figure::DEFAULT_FRAMES;
 
 #[derive(Debug, clap::Args)]
 pub struct FiguresArgs {

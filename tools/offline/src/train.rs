@@ -6,10 +6,10 @@
 
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mtanet_models::analysis;
+use mtanet_analysis::figure::DEFAULT_FRAMES;
+use mtanet_analysis::held_out as analysis;
 use mtanet_models::data::Dataset;
 use mtanet_models::eval::evaluate;
-use mtanet_models::figure::DEFAULT_FRAMES;
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 use serde::{Deserialize, Serialize};
 use std::io::Write;

@@ -2,7 +2,7 @@
 //! frame, predicted frame, then the first generative unit's output h of each layer, with row
 //! and frame labels.
 
-use crate::model::{ModelError, MtaPredNet};
+use mtanet_models::{ModelError, MtaPredNet};
 use mtanet_plot::Cell;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

@@ -1,12 +1,12 @@
 //! The model's figure strip on a track: the checkpoint run on a fresh drive of the track (the
-//! reactive rule with exploration, at the model's frame skip), drawn by `mtanet_models::figure`.
+//! reactive rule with exploration, at the model's frame skip), drawn by [`crate::figure`].
 //! `mta report` and the end of `mta up` put it in the run folder as `figure.png`.
 
 use std::path::Path;
 
+use crate::figure::DEFAULT_FRAMES;
 use anyhow::Context;
 use mtanet_models::checkpoint;
-use mtanet_models::figure::DEFAULT_FRAMES;
 use mtanet_models::sequences::push_window;
 
 /// The figure strip of the checkpoint at `model` on a fresh drive of `track` (the reactive rule
@@ -18,13 +18,13 @@ pub fn strip_on_track(model: &Path, track: &Path, out: &Path) -> anyhow::Result<
     let len = DEFAULT_FRAMES.iter().max().copied().unwrap_or(130) + 1;
     let scene = mtanet_scenes::SceneConfig::default().with_track(track.to_path_buf());
     let mut world = mtanet_scenes::World::new(&scene)?;
-    let crate::drive::Recorded {
+    let mtanet_eval::drive::Recorded {
         frames, applied, ..
-    } = crate::drive::record_reactive(&mut world, (len + 1) * skip, 11)?;
+    } = mtanet_eval::drive::record_reactive(&mut world, (len + 1) * skip, 11)?;
     let (mut f, mut a) = (Vec::new(), Vec::new());
     push_window(&frames, &applied, skip - 1, skip, len, &mut f, &mut a);
     let images = tch::Tensor::from_slice(&f).view([len as i64, 8, 12]);
     let actions = tch::Tensor::from_slice(&a).view([len as i64, 2]);
-    mtanet_models::figure::figure_strip(&net, &images, &actions, &DEFAULT_FRAMES, out)?;
+    crate::figure::figure_strip(&net, &images, &actions, &DEFAULT_FRAMES, out)?;
     Ok(())
 }
