@@ -9,6 +9,7 @@ pub mod incident;
 pub mod latency;
 pub mod planning;
 pub mod predictor;
+pub mod rows;
 pub mod run_folder;
 pub mod simulator;
 pub mod soak;

@@ -1,16 +1,17 @@
-//! The car's path with who drove it, as CSV (`step,episode,x,y,lateral_m,source`), every
-//! `every` steps: for the run's lap-trace picture.
+//! The car's path with who drove it ([`mtanet_summaries::rows::TraceRow`], CSV), every
+//! `every` steps: for the run's lap-trace picture and the experiments' takeover time.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::BufWriter;
 use std::path::Path;
 
 use anyhow::Context;
 use mtanet_ipc::CommandSource;
 use mtanet_scenes::GroundTruth;
+use mtanet_summaries::rows::{self, TraceRow};
 
 pub struct Trace {
-    out: BufWriter<File>,
+    out: csv::Writer<BufWriter<File>>,
     every: u64,
 }
 
@@ -18,8 +19,7 @@ impl Trace {
     pub fn create(path: &Path, every: u64) -> anyhow::Result<Self> {
         let file =
             File::create(path).with_context(|| format!("creating the trace {}", path.display()))?;
-        let mut out = BufWriter::new(file);
-        writeln!(out, "step,episode,x,y,lateral_m,source")?;
+        let out = rows::writer::<TraceRow, _>(BufWriter::new(file)).context("writing the trace")?;
         Ok(Self {
             out,
             every: every.max(1),
@@ -34,14 +34,8 @@ impl Trace {
         source: CommandSource,
     ) -> anyhow::Result<()> {
         if step % self.every == 0 {
-            writeln!(
-                self.out,
-                "{step},{episode},{:.4},{:.4},{:.4},{}",
-                t.x,
-                t.y,
-                t.lateral_m,
-                source.name()
-            )?;
+            let row = TraceRow::new(step, episode, t.x, t.y, t.lateral_m, source.name());
+            self.out.serialize(row).context("writing the trace")?;
         }
         Ok(())
     }

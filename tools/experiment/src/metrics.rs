@@ -264,29 +264,9 @@ fn after_first_share(laps: &mtanet_report::report::Laps) -> Option<f64> {
 
 /// (step, active inference drove) per trace row.
 pub fn parse_trace(text: &str) -> anyhow::Result<Vec<(u64, bool)>> {
-    let mut lines = text.lines();
-    let header = lines.next().unwrap_or_default();
-    let cols: Vec<&str> = header.split(',').collect();
-    let col = |name: &str| {
-        cols.iter()
-            .position(|c| *c == name)
-            .with_context(|| format!("no column {name} in {header:?}"))
-    };
-    let (step, source) = (col("step")?, col("source")?);
     let ai = mtanet_ipc::CommandSource::ActiveInference.name();
-    lines
-        .enumerate()
-        .filter(|(_, l)| !l.is_empty())
-        .map(|(i, l)| {
-            let f: Vec<&str> = l.split(',').collect();
-            let s = f.get(step).and_then(|s| s.parse().ok());
-            let src = f.get(source);
-            match (s, src) {
-                (Some(s), Some(src)) => Ok((s, *src == ai)),
-                _ => anyhow::bail!("line {}: {l:?}", i + 2),
-            }
-        })
-        .collect()
+    let rows = mtanet_summaries::rows::parse::<mtanet_summaries::rows::TraceRow>(text)?;
+    Ok(rows.iter().map(|r| (r.step, r.source == ai)).collect())
 }
 
 /// Simulated seconds until active inference first drives and then holds the wheel for at least

@@ -143,15 +143,12 @@ fn wait_unreaped(pid: u32) -> anyhow::Result<()> {
     }
 }
 
-/// Simulated seconds a run has reached, from its `progress.csv` (`wall_s,step,sim_s,...`,
-/// once a second); 0 before the first row.
+/// Simulated seconds a run has reached, from its `progress.csv` (a row a second); 0 before the
+/// first row.
 pub fn sim_seconds_reached(dir: &Path) -> f64 {
-    std::fs::read_to_string(dir.join(run_folder::PROGRESS))
+    use mtanet_summaries::rows::{ProgressRow, read};
+    read::<ProgressRow>(&dir.join(run_folder::PROGRESS))
         .ok()
-        .and_then(|t| {
-            t.lines()
-                .rev()
-                .find_map(|l| l.split(',').nth(2)?.parse().ok())
-        })
+        .and_then(|rows| rows.last().map(|r| r.sim_s))
         .unwrap_or(0.0)
 }

@@ -1,28 +1,24 @@
 //! What `mta up` shows while a run goes: the live line on the terminal and `progress.csv` in the
 //! run folder, both from the latest observation and command.
 
-use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
 
 use anyhow::Context;
 use mtanet_ipc::{Command, CommandSource, Observation};
+use mtanet_summaries::rows::{self, ProgressRow};
 
-/// `progress.csv`: `wall_s,step,sim_s,laps,driver,model_over_copy_last,probe,predictor_ms`,
-/// one row a second (empty fields: not known yet). A failed write stops the file, not the run.
+/// `progress.csv` ([`ProgressRow`]), one row a second. A failed write stops the file, not the run.
 pub(crate) struct ProgressCsv {
-    out: Option<std::io::BufWriter<std::fs::File>>,
+    out: Option<csv::Writer<std::fs::File>>,
 }
 
 impl ProgressCsv {
     pub(crate) fn create(path: &Path) -> anyhow::Result<Self> {
         let f =
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-        let mut out = std::io::BufWriter::new(f);
-        writeln!(
-            out,
-            "wall_s,step,sim_s,laps,driver,model_over_copy_last,probe,predictor_ms"
-        )?;
+        let out = rows::writer::<ProgressRow, _>(f)
+            .with_context(|| format!("writing {}", path.display()))?;
         Ok(Self { out: Some(out) })
     }
 
@@ -36,19 +32,19 @@ impl ProgressCsv {
         let (Some(out), Some(v)) = (self.out.as_mut(), Latest::of(o, c)) else {
             return;
         };
-        let f = |v: Option<f32>| v.map_or(String::new(), |v| format!("{v:.4}"));
-        let res = writeln!(
-            out,
-            "{:.1},{},{:.2},{laps},{},{},{},{}",
-            wall.as_secs_f64(),
-            v.step,
-            v.sim_s,
-            v.driver.unwrap_or(""),
-            f(v.ratio),
-            f(v.probe),
-            f(v.predictor_ms),
-        )
-        .and_then(|_| out.flush());
+        // Four decimals are all a curve needs.
+        let f = |v: Option<f32>| v.map(|v| (f64::from(v) * 1e4).round() / 1e4);
+        let row = ProgressRow {
+            wall_s: (wall.as_secs_f64() * 10.0).round() / 10.0,
+            step: v.step,
+            sim_s: (v.sim_s * 100.0).round() / 100.0,
+            laps,
+            driver: v.driver.unwrap_or("").to_owned(),
+            model_over_copy_last: f(v.ratio),
+            probe: f(v.probe),
+            predictor_ms: f(v.predictor_ms),
+        };
+        let res = out.serialize(row).and_then(|_| Ok(out.flush()?));
         if let Err(e) = res {
             tracing::error!("progress.csv stops here: {e}");
             self.out = None;

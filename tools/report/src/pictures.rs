@@ -22,7 +22,9 @@ const DRIVERS: [(&str, &str, Rgb); 5] = [
 
 /// The car's path over the track, coloured by who drove.
 pub(crate) fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(dir.join(run_folder::TRACE)).context("reading trace.csv")?;
+    let rows = mtanet_summaries::rows::read::<mtanet_summaries::rows::TraceRow>(
+        &dir.join(run_folder::TRACE),
+    )?;
     let mut paths: Vec<Path2d> = DRIVERS
         .iter()
         .map(|&(_, name, colour)| Path2d {
@@ -31,17 +33,10 @@ pub(crate) fn lap_trace(dir: &Path, track: &Path) -> anyhow::Result<()> {
             points: Vec::new(),
         })
         .collect();
-    for l in text.lines().skip(1) {
-        let f: Vec<&str> = l.split(',').collect();
-        let (Some(x), Some(y), Some(source)) = (f.get(2), f.get(3), f.get(5)) else {
-            continue;
-        };
-        let (Ok(x), Ok(y)) = (x.parse(), y.parse()) else {
-            continue;
-        };
-        // An unknown source is drawn as the reactive rule's, as before.
-        let k = DRIVERS.iter().position(|d| d.0 == *source).unwrap_or(0);
-        paths[k].points.push((x, y));
+    for r in rows {
+        // An unknown source is drawn as the reactive rule's.
+        let k = DRIVERS.iter().position(|d| d.0 == r.source).unwrap_or(0);
+        paths[k].points.push((r.x, r.y));
     }
     let track = mtanet_track::Track::load(track).context("loading the run's track")?;
     mtanet_plot::lap_trace(

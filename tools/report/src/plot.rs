@@ -8,7 +8,8 @@
 //!
 //! `mta report` (the end of every `mta up`) draws them too; a missing input skips its picture.
 
-use mtanet_summaries::run_folder;
+use mtanet_summaries::rows::{self, ProgressRow};
+use mtanet_summaries::{CommandSource, run_folder};
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -140,27 +141,19 @@ pub fn model_error(dir: &Path) -> anyhow::Result<bool> {
     let probe_ref = format!("min_probe {}", gate.min_probe);
     let trust_ref = format!("trusted below {}", gate.trust_ratio);
     let path = dir.join(run_folder::PROGRESS);
-    let Ok(text) = std::fs::read_to_string(&path) else {
+    if !path.exists() {
         return Ok(false);
-    };
-    let mut header = None;
+    }
     let (mut ratio, mut probe, mut ai) = (vec![], vec![], vec![]);
-    for line in text.lines() {
-        let f: Vec<&str> = line.split(',').collect();
-        let Some(h) = &header else {
-            header = Some(f.iter().map(|s| s.to_string()).collect::<Vec<_>>());
-            continue;
-        };
-        let col = |name: &str| h.iter().position(|c| c == name).and_then(|i| f.get(i));
-        let num = |name: &str| col(name).and_then(|s| s.parse::<f64>().ok());
-        let Some(t) = num("sim_s") else { continue };
-        if let Some(r) = num("model_over_copy_last") {
-            ratio.push((t, r));
+    for r in rows::read::<ProgressRow>(&path)? {
+        let t = r.sim_s;
+        if let Some(v) = r.model_over_copy_last {
+            ratio.push((t, v));
         }
-        if let Some(p) = num("probe") {
+        if let Some(p) = r.probe {
             probe.push((t, p));
         }
-        let driving = col("driver").is_some_and(|d| *d == "active_inference");
+        let driving = r.driver == CommandSource::ActiveInference.name();
         ai.push((t, if driving { 1.0 } else { 0.0 }));
     }
     if ratio.is_empty() && ai.is_empty() {
