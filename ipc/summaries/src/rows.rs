@@ -3,6 +3,8 @@
 //! it; the lap-trace picture and the experiments' takeover time read it) and `progress.csv`
 //! ([`ProgressRow`]: `mta up` writes it; `model_error.png` and `mta experiment` read it).
 
+use std::borrow::Cow;
+
 use anyhow::{Context, bail};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -22,7 +24,9 @@ pub struct TraceRow {
     pub x: f64,
     pub y: f64,
     pub lateral_m: f64,
-    pub source: String,
+    /// Borrowed when written (a source's name is static): no allocation per row on the
+    /// simulator's 50 Hz path.
+    pub source: Cow<'static, str>,
 }
 
 impl Row for TraceRow {
@@ -59,17 +63,29 @@ impl Row for ProgressRow {
 
 impl TraceRow {
     /// Rounded to 0.1 mm: the file stays small and a picture needs no more.
-    pub fn new(step: u64, episode: u32, x: f64, y: f64, lateral_m: f64, source: &str) -> Self {
-        let mm10 = |v: f64| (v * 1e4).round() / 1e4;
+    pub fn new(
+        step: u64,
+        episode: u32,
+        x: f64,
+        y: f64,
+        lateral_m: f64,
+        source: &'static str,
+    ) -> Self {
         Self {
             step,
             episode,
-            x: mm10(x),
-            y: mm10(y),
-            lateral_m: mm10(lateral_m),
-            source: source.to_owned(),
+            x: round_to(x, 4),
+            y: round_to(y, 4),
+            lateral_m: round_to(lateral_m, 4),
+            source: Cow::Borrowed(source),
         }
     }
+}
+
+/// `v` rounded to `decimals` places: what a row's reader needs, and no longer a line.
+pub fn round_to(v: f64, decimals: i32) -> f64 {
+    let scale = 10f64.powi(decimals);
+    (v * scale).round() / scale
 }
 
 /// The rows of a file, read by the header's names. A bad last line is left out (a writer killed

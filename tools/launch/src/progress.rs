@@ -33,11 +33,11 @@ impl ProgressCsv {
             return;
         };
         // Four decimals are all a curve needs.
-        let f = |v: Option<f32>| v.map(|v| (f64::from(v) * 1e4).round() / 1e4);
+        let f = |v: Option<f32>| v.map(|v| rows::round_to(f64::from(v), 4));
         let row = ProgressRow {
-            wall_s: (wall.as_secs_f64() * 10.0).round() / 10.0,
+            wall_s: rows::round_to(wall.as_secs_f64(), 1),
             step: v.step,
-            sim_s: (v.sim_s * 100.0).round() / 100.0,
+            sim_s: rows::round_to(v.sim_s, 2),
             laps,
             driver: v.driver.unwrap_or("").to_owned(),
             model_over_copy_last: f(v.ratio),
