@@ -399,7 +399,7 @@ impl Agent {
             // blocking here held a 50 Hz step for 24 ms once. A plan still out is taken up and
             // dropped at the next segment (its segment is past), and submitting skips a busy
             // planner.
-            let _ = plans.wait(self.drain_wait(lockstep));
+            let _ = self.await_plan(plans, lockstep, Duration::ZERO);
         }
         if self.mode == Mode::ActiveInference {
             // Start planning afresh from the first frame of the new episode.

@@ -91,7 +91,7 @@ impl Agent {
         if may_resume && self.cost.is_some() && trusted {
             if !plans.idle() {
                 // A plan still out from before the fallback: its segment is past.
-                let _ = plans.wait(self.drain_wait(t.lockstep));
+                let _ = self.await_plan(plans, t.lockstep, Duration::ZERO);
             }
             // Hold the rule's command for this segment, so the plan's start is exact, and plan
             // the next one from it.

@@ -6,17 +6,39 @@ use std::time::{Duration, Instant};
 use super::{Agent, AgentModel, Tick};
 use crate::drive::Drive;
 use crate::planner::Outcome;
-use crate::worker::{PlanJob, PlanService};
+use crate::worker::{PlanDone, PlanJob, PlanService};
 
 impl Agent {
-    /// How long to wait for a plan still out whose segment is past: in lockstep as long as a
-    /// plan may take, in real time not at all.
-    pub(super) fn drain_wait(&self, lockstep: bool) -> Duration {
-        if lockstep {
-            Duration::from_secs_f64(self.cfg.lockstep_wait_ms.max(0.0) / 1000.0)
-        } else {
-            Duration::ZERO
+    /// The outstanding plan's result. Real time waits at most `real_time` (a late plan is
+    /// dropped: the step must go out). Lockstep waits for as long as the plan takes, saying so
+    /// every `lockstep_wait_ms`: dropping it would make the run depend on the machine's speed
+    /// (on a loaded machine a niced planner thread took over 2 s, and two runs of the same
+    /// lockstep experiment differed). `None` when nothing is outstanding or real time gave up.
+    pub(super) fn await_plan<P, S>(
+        &self,
+        plans: &mut P,
+        lockstep: bool,
+        real_time: Duration,
+    ) -> Option<PlanDone>
+    where
+        P: PlanService<S>,
+    {
+        if !lockstep {
+            return plans.wait(real_time);
         }
+        let every = Duration::from_secs_f64(self.cfg.lockstep_wait_ms.max(1.0) / 1000.0);
+        let asked = Instant::now();
+        while !plans.idle() {
+            if let Some(done) = plans.wait(every) {
+                return Some(done);
+            }
+            tracing::warn!(
+                segment = self.segment,
+                waited_s = asked.elapsed().as_secs_f64(),
+                "lockstep: the plan is not done yet; waiting for it (a lockstep plan is never late)"
+            );
+        }
+        None
     }
 
     /// The plan submitted a segment ago, if it is done in time (`plan_wait_ms` in real time).
@@ -28,13 +50,9 @@ impl Agent {
     where
         P: PlanService<S>,
     {
-        let wait_ms = if t.lockstep {
-            self.cfg.lockstep_wait_ms
-        } else {
-            self.cfg.plan_wait_ms
-        };
+        let wait = Duration::from_secs_f64(self.cfg.plan_wait_ms.max(0.0) / 1000.0);
         let wanted = self.segment - 1;
-        let done = plans.wait(Duration::from_secs_f64(wait_ms.max(0.0) / 1000.0))?;
+        let done = self.await_plan(plans, t.lockstep, wait)?;
         match done.outcome {
             Ok(o) if done.segment == wanted => Some((o, done.compute)),
             Ok(_) => None, // a late plan for a segment already past

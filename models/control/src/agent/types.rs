@@ -77,8 +77,10 @@ pub struct AgentConfig {
     /// slack for a busy machine to hand the plan over before it is needed.
     pub plan_budget: f64,
     /// Real time: how long the first step of a segment waits for its plan before it counts as
-    /// late (the previous plan's next segment is used). Lockstep waits up to `lockstep_wait_ms`.
+    /// late (the previous plan's next segment is used).
     pub plan_wait_ms: f64,
+    /// Lockstep waits for every plan however long it takes (a dropped plan would make the run
+    /// depend on the machine's speed), and logs a warning each time this much has passed.
     pub lockstep_wait_ms: f64,
     pub cost: CostConfig,
     pub planner: PlannerConfig,
