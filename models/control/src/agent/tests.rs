@@ -412,7 +412,7 @@ fn lockstep_waits_for_every_plan_however_slow_real_time_never_blocks() {
             };
             a.step(&t, &mut model, &mut plans).unwrap();
         }
-        (a.stats.clone(), plans.longest)
+        (a.stats, plans.longest)
     };
     let cfg = cfg();
     // Real time: never blocks longer than a late plan's wait (blocking held a 50 Hz step 24 ms);
