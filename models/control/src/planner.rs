@@ -237,36 +237,11 @@ impl Planner {
             if out.cut {
                 break;
             }
-            let k = match deadline {
-                None => samples,
-                Some(d) => {
-                    let left = d.saturating_duration_since(imagination.now());
-                    match self
-                        .rollout_cost
-                        .affordable(left, h, min, samples, SIZE_STEP)
-                    {
-                        Some(k) => k,
-                        None => {
-                            out.cut = true;
-                            break;
-                        }
-                    }
-                }
+            let Some(k) = self.batch_size(&*imagination, deadline, min) else {
+                out.cut = true;
+                break;
             };
-            // The best plan so far competes again.
-            let mut cands: Vec<Vec<Drive>> = vec![out.plan.clone()];
-            while cands.len() < k {
-                let plan = (0..h)
-                    .map(|s| {
-                        let (zs, zt) = (self.normal(), self.normal());
-                        self.clamp(Drive::new(
-                            mean[s].speed + std[s].speed * zs,
-                            mean[s].turn + std[s].turn * zt,
-                        ))
-                    })
-                    .collect();
-                cands.push(plan);
-            }
+            let cands = self.sample(k, &out.plan, &mean, &std);
             let Some(scored) = self.score(imagination, cost, before, &cands, deadline)? else {
                 out.cut = true;
                 break;
@@ -292,6 +267,50 @@ impl Planner {
         self.warm = out.plan[1..].to_vec();
         self.warm.push(*out.plan.last().expect("horizon >= 1"));
         Ok(out)
+    }
+
+    /// Candidates for the next CEM iteration: `k` a deadline can afford (all `samples` without
+    /// one); `None` when not even `min` fit in the time left.
+    fn batch_size<I: Imagination + ?Sized>(
+        &self,
+        imagination: &I,
+        deadline: Option<Instant>,
+        min: usize,
+    ) -> Option<usize> {
+        let (h, samples) = (self.cfg.horizon, self.cfg.samples);
+        match deadline {
+            None => Some(samples),
+            Some(d) => {
+                let left = d.saturating_duration_since(imagination.now());
+                self.rollout_cost
+                    .affordable(left, h, min, samples, SIZE_STEP)
+            }
+        }
+    }
+
+    /// `best` (the best plan so far competes again) and `k - 1` plans drawn from the Gaussian
+    /// (`mean`, `std`) per segment, clamped to the bounds.
+    fn sample(
+        &mut self,
+        k: usize,
+        best: &[Drive],
+        mean: &[Drive],
+        std: &[Drive],
+    ) -> Vec<Vec<Drive>> {
+        let mut cands: Vec<Vec<Drive>> = vec![best.to_vec()];
+        while cands.len() < k {
+            let plan = (0..self.cfg.horizon)
+                .map(|s| {
+                    let (zs, zt) = (self.normal(), self.normal());
+                    self.clamp(Drive::new(
+                        mean[s].speed + std[s].speed * zs,
+                        mean[s].turn + std[s].turn * zt,
+                    ))
+                })
+                .collect();
+            cands.push(plan);
+        }
+        cands
     }
 
     /// Rolls `cands` out and scores them, best first; `None` if the deadline stopped the

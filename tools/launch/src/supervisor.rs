@@ -69,6 +69,50 @@ struct Child {
     notify: Option<NotifySocket>,
 }
 
+impl Child {
+    /// Takes in the exit of a running process: done, given up (a success, no restart policy,
+    /// or too many failures in the policy's window), or to restart after its back-off.
+    fn exited(&mut self, status: ExitStatus, now: Instant) -> Event {
+        self.process = None;
+        if let Some(l) = self.logger.take() {
+            let _ = l.join();
+        }
+        let name = self.spec.name.clone();
+        if status.success() {
+            self.state = State::Done;
+            return Event::Done { name };
+        }
+        let policy = &self.spec.restart;
+        let window = Duration::from_secs_f64(policy.window_s);
+        while self
+            .recent
+            .front()
+            .is_some_and(|t| now.duration_since(*t) > window)
+        {
+            self.recent.pop_front();
+        }
+        if !policy.on_failure || self.recent.len() as u32 >= policy.limit {
+            self.state = State::GaveUp;
+            let status = describe(status);
+            return Event::GaveUp { name, status };
+        }
+        // A process that had run well past the longest back-off starts over short.
+        if self.started.elapsed() > Duration::from_secs_f64(2.0 * policy.max_backoff_s) {
+            self.backoff = Duration::from_secs_f64(policy.backoff_s);
+        }
+        self.recent.push_back(now);
+        self.state = State::Restarting;
+        self.restart_at = Some(now + self.backoff);
+        let restart_in = self.backoff;
+        self.backoff = (self.backoff * 2).min(Duration::from_secs_f64(policy.max_backoff_s));
+        Event::Failed {
+            name,
+            status: describe(status),
+            restart_in,
+        }
+    }
+}
+
 pub struct Supervisor {
     dir: PathBuf,
     combined: Arc<Mutex<File>>,
@@ -214,57 +258,7 @@ impl Supervisor {
                     else {
                         continue;
                     };
-                    c.process = None;
-                    if let Some(l) = c.logger.take() {
-                        let _ = l.join();
-                    }
-                    let name = c.spec.name.clone();
-                    if status.success() || !c.spec.restart.on_failure {
-                        c.state = if status.success() {
-                            State::Done
-                        } else {
-                            State::GaveUp
-                        };
-                        events.push(if status.success() {
-                            Event::Done { name }
-                        } else {
-                            Event::GaveUp {
-                                name,
-                                status: describe(status),
-                            }
-                        });
-                        continue;
-                    }
-                    let policy = &c.spec.restart;
-                    let window = Duration::from_secs_f64(policy.window_s);
-                    while c
-                        .recent
-                        .front()
-                        .is_some_and(|t| now.duration_since(*t) > window)
-                    {
-                        c.recent.pop_front();
-                    }
-                    if c.recent.len() as u32 >= policy.limit {
-                        c.state = State::GaveUp;
-                        events.push(Event::GaveUp {
-                            name,
-                            status: describe(status),
-                        });
-                        continue;
-                    }
-                    // A process that had run well past the longest back-off starts over short.
-                    if c.started.elapsed() > Duration::from_secs_f64(2.0 * policy.max_backoff_s) {
-                        c.backoff = Duration::from_secs_f64(policy.backoff_s);
-                    }
-                    c.recent.push_back(now);
-                    c.state = State::Restarting;
-                    c.restart_at = Some(now + c.backoff);
-                    events.push(Event::Failed {
-                        name,
-                        status: describe(status),
-                        restart_in: c.backoff,
-                    });
-                    c.backoff = (c.backoff * 2).min(Duration::from_secs_f64(policy.max_backoff_s));
+                    events.push(c.exited(status, now));
                 }
                 State::Restarting if c.restart_at.is_some_and(|t| now >= t) => {
                     to_start.push(c.spec.name.clone());

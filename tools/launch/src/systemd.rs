@@ -66,26 +66,7 @@ fn unit(
         exec.push_str(&quoted(a, true));
     }
     let _ = writeln!(u, "ExecStart={exec}\nWatchdogSec={}", spec.watchdog_s);
-    // The classes `mta up` gives (docs/measurements.md, "Sharing the CPU").
-    match spec.realtime_priority {
-        Some(prio) => {
-            let _ = writeln!(
-                u,
-                "# On the 50 Hz path: real-time scheduling. The predictor's planner thread runs\n# SCHED_FIFO below it ([predictor] planner_priority): plans before any normal program."
-            );
-            let _ = writeln!(u, "CPUSchedulingPolicy=fifo\nCPUSchedulingPriority={prio}");
-        }
-        None => {
-            let _ = writeln!(
-                u,
-                "# Normal scheduler, at its own niceness ([trainer] nice; the trainer takes nice_beside_fifo\n# itself when its user may run SCHED_FIFO, as the 50 Hz path then does): after the planner."
-            );
-            let _ = writeln!(u, "CPUSchedulingPolicy=other");
-            if let Some(n) = nice {
-                let _ = writeln!(u, "Nice={n}");
-            }
-        }
-    }
+    scheduling(&mut u, spec, nice);
     // systemd 252 has no doubling back-off (RestartSteps= came in 254): the first delay is used.
     let restart = if r.on_failure { "on-failure" } else { "no" };
     let _ = writeln!(u, "Restart={restart}\nRestartSec={}", r.backoff_s);
@@ -107,6 +88,29 @@ fn unit(
     );
     let _ = writeln!(u, "[Install]\nWantedBy=mtanet.target");
     u
+}
+
+/// The scheduling class `mta up` gives the process (docs/measurements.md, "Sharing the CPU").
+fn scheduling(u: &mut String, spec: &ProcessSpec, nice: Option<i32>) {
+    match spec.realtime_priority {
+        Some(prio) => {
+            let _ = writeln!(
+                u,
+                "# On the 50 Hz path: real-time scheduling. The predictor's planner thread runs\n# SCHED_FIFO below it ([predictor] planner_priority): plans before any normal program."
+            );
+            let _ = writeln!(u, "CPUSchedulingPolicy=fifo\nCPUSchedulingPriority={prio}");
+        }
+        None => {
+            let _ = writeln!(
+                u,
+                "# Normal scheduler, at its own niceness ([trainer] nice; the trainer takes nice_beside_fifo\n# itself when its user may run SCHED_FIFO, as the 50 Hz path then does): after the planner."
+            );
+            let _ = writeln!(u, "CPUSchedulingPolicy=other");
+            if let Some(n) = nice {
+                let _ = writeln!(u, "Nice={n}");
+            }
+        }
+    }
 }
 
 /// A word as systemd's ExecStart= reads it: `%` (a specifier) doubled, `$` (a variable, expanded

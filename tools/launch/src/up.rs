@@ -326,68 +326,23 @@ fn watch(
     let tty = std::io::stderr().is_terminal();
     let start = Instant::now();
     let mut last_print = Instant::now();
-    let (mut last_obs, mut last_cmd) = (None::<Observation>, None::<Command>);
-    let mut episodes_laps = (0u8, 0u32, 0u32); // episode, laps before it, laps in it
-    loop {
-        if shutdown.requested() {
+    let mut latest = Latest::default();
+    while !shutdown.requested() {
+        if simulator_done(sup.poll()?)? {
             return Ok(());
         }
-        for e in sup.poll()? {
-            match e {
-                Event::Done { name } if name == "simulator" => return Ok(()),
-                // A recorder that failed costs the recording, not the run.
-                Event::Done { name } | Event::GaveUp { name, .. } if name == RECORDER => {
-                    eprintln!("\n[up] the recorder stopped; see mta.log (the run goes on)");
-                }
-                Event::Done { name } => bail!("{name} exited on its own"),
-                Event::GaveUp { name, status } => {
-                    bail!("{name} failed ({status}) more often than its restart policy allows")
-                }
-                Event::Failed {
-                    name,
-                    status,
-                    restart_in,
-                } => {
-                    eprintln!(
-                        "\n[up] {name} failed ({status}): restarting in {:.1} s",
-                        restart_in.as_secs_f64()
-                    )
-                }
-                Event::Restarted {
-                    name,
-                    pid,
-                    restarts,
-                } => {
-                    eprintln!("[up] restarted {name} (pid {pid}, restart {restarts})")
-                }
-            }
-        }
         obs.wait(Duration::from_millis(100))?;
-        if let Some(o) = obs.latest()? {
-            if o.episode != episodes_laps.0 {
-                episodes_laps = (o.episode, episodes_laps.1 + episodes_laps.2, 0);
-            }
-            episodes_laps.2 = o.truth.laps;
-            last_obs = Some(o);
-        }
-        if let Some(c) = cmds.latest()? {
-            last_cmd = Some(c);
-        }
+        latest.take_in(&obs, &cmds)?;
         if last_row.elapsed() >= Duration::from_secs(1) {
             last_row = Instant::now();
-            let laps = episodes_laps.1 + episodes_laps.2;
-            csv.row(last_obs.as_ref(), last_cmd.as_ref(), laps, start.elapsed());
+            let (o, c) = (latest.obs.as_ref(), latest.cmd.as_ref());
+            csv.row(o, c, latest.laps(), start.elapsed());
         }
         if last_print.elapsed() >= Duration::from_secs(if tty { 1 } else { 10 }) {
             last_print = Instant::now();
+            let (o, c) = (latest.obs.as_ref(), latest.cmd.as_ref());
+            let mut line = progress(o, c, latest.laps(), start.elapsed(), target_sim_s);
             let restarts: u32 = sup.restarts().values().sum();
-            let mut line = progress(
-                last_obs.as_ref(),
-                last_cmd.as_ref(),
-                episodes_laps.1 + episodes_laps.2,
-                start.elapsed(),
-                target_sim_s,
-            );
             if restarts > 0 {
                 line.push_str(&format!(" | restarts {restarts}"));
             }
@@ -399,4 +354,71 @@ fn watch(
             }
         }
     }
+    Ok(())
+}
+
+/// The newest observation and command seen, and the laps over all episodes so far.
+#[derive(Default)]
+struct Latest {
+    obs: Option<Observation>,
+    cmd: Option<Command>,
+    episode: u8,
+    laps_before: u32,
+    laps_in: u32,
+}
+
+impl Latest {
+    fn take_in(
+        &mut self,
+        obs: &Receiver<Observation>,
+        cmds: &Receiver<Command>,
+    ) -> anyhow::Result<()> {
+        if let Some(o) = obs.latest()? {
+            if o.episode != self.episode {
+                (self.episode, self.laps_before, self.laps_in) = (o.episode, self.laps(), 0);
+            }
+            self.laps_in = o.truth.laps;
+            self.obs = Some(o);
+        }
+        if let Some(c) = cmds.latest()? {
+            self.cmd = Some(c);
+        }
+        Ok(())
+    }
+
+    fn laps(&self) -> u32 {
+        self.laps_before + self.laps_in
+    }
+}
+
+/// Says what the supervisor did; true once the simulator has ended its run, an error once a
+/// process other than the recorder ended or failed past its restart policy.
+fn simulator_done(events: Vec<Event>) -> anyhow::Result<bool> {
+    for e in events {
+        match e {
+            Event::Done { name } if name == "simulator" => return Ok(true),
+            // A recorder that failed costs the recording, not the run.
+            Event::Done { name } | Event::GaveUp { name, .. } if name == RECORDER => {
+                eprintln!("\n[up] the recorder stopped; see mta.log (the run goes on)");
+            }
+            Event::Done { name } => bail!("{name} exited on its own"),
+            Event::GaveUp { name, status } => {
+                bail!("{name} failed ({status}) more often than its restart policy allows")
+            }
+            Event::Failed {
+                name,
+                status,
+                restart_in,
+            } => eprintln!(
+                "\n[up] {name} failed ({status}): restarting in {:.1} s",
+                restart_in.as_secs_f64()
+            ),
+            Event::Restarted {
+                name,
+                pid,
+                restarts,
+            } => eprintln!("[up] restarted {name} (pid {pid}, restart {restarts})"),
+        }
+    }
+    Ok(false)
 }

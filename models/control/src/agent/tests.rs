@@ -427,7 +427,10 @@ fn lockstep_waits_for_every_plan_however_slow_real_time_never_blocks() {
     // would make the run depend on the machine's speed).
     let (stats, longest) = drive(true);
     assert_eq!(stats.late_plans, 0, "{stats:?}");
-    assert!(stats.plans >= 8 && stats.active_inference_steps > 0, "{stats:?}");
+    assert!(
+        stats.plans >= 8 && stats.active_inference_steps > 0,
+        "{stats:?}"
+    );
     assert_eq!(
         longest,
         Duration::from_secs_f64(cfg.lockstep_wait_ms / 1000.0)
