@@ -28,7 +28,7 @@ pub struct ReflexConfig {
 impl Default for ReflexConfig {
     fn default() -> Self {
         Self {
-            gentle: 1.5,
+            gentle: 2.0,
             strong: 6.0,
             search: 6.0,
             strong_max_speed: 5.0,
