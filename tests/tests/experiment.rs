@@ -140,7 +140,7 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         if phase == "learn" {
             // The checkpoint's analysis: its figures in the row are those of analysis.json.
             let path = out.join(variant).join("0/analysis/analysis.json");
-            let a: mtanet_analysis::Analysis = mtanet_files::read_json(&path).unwrap();
+            let a: mtanet_offline::analyze::Analysis = mtanet_files::read_json(&path).unwrap();
             let r0 = a.layers[0].r.steps.map(|s| s * a.step_s);
             assert!(r0.is_some_and(|s| s > 0.0), "{path:?}: {:?}", a.layers[0]);
             assert_eq!(value(r, "timescale_r0_s"), r0);

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use mtanet_recording::record::RecordSummary;
-use mtanet_recording::replay::ReplaySummary;
+use mtanet_observe::record::RecordSummary;
+use mtanet_observe::replay::ReplaySummary;
 use mtanet_report::report::Report;
 use mtanet_system_tests::{
     Proc, arg, bin, nodes, read_json, remove_namespace_files, unique_namespace, wait_for_alive,

@@ -8,7 +8,7 @@
 //! - Trainer: [`Trainer::update`] on `[B, T, H, W]` windows (or [`Trainer::update_from`] to carry
 //!   the state across windows), [`Trainer::checkpoint_bytes`] to publish weights.
 //! - Offline: `mta train` / `mta synth`, [`analysis::timescales`] for the layers' timescales
-//!   (the figure strip and the held-out report are `mtanet-analysis`'s).
+//!   (the figure strip and the held-out report are `mtanet-offline`'s).
 //!
 //! libtorch should run with one intra-op thread (`tch::set_num_threads(1)`): on 2 shared cores
 //! two threads collapse 5-50x when another process holds a core (docs/measurements.md), and at 8x12 the ops

@@ -8,7 +8,7 @@ use mtanet_summaries::run_folder;
 use std::path::Path;
 
 use anyhow::Context;
-use mtanet_analysis::{Analysis, Options};
+use mtanet_offline::analyze::{Analysis, Options};
 use mtanet_scenes::SceneConfig;
 
 use crate::matrix::{Cell, CellRecord, Phase};
@@ -40,8 +40,13 @@ pub fn ensure(
                 track.display()
             );
             let model = cell.dir.join("learn").join(run_folder::MODEL);
-            mtanet_analysis::analyze_checkpoint(&model, &scene.clone().with_track(track), &o, &out)
-                .with_context(|| format!("analysing {}", model.display()))?
+            mtanet_offline::analyze::analyze_checkpoint(
+                &model,
+                &scene.clone().with_track(track),
+                &o,
+                &out,
+            )
+            .with_context(|| format!("analysing {}", model.display()))?
         }
     };
     for row in record.rows.iter_mut().filter(|r| r.phase == Phase::Learn) {

@@ -196,7 +196,7 @@ impl Metrics {
     }
 
     /// Takes the learnt checkpoint's timescales and read-outs from its analysis.
-    pub fn add_analysis(&mut self, a: &mtanet_analysis::Analysis) {
+    pub fn add_analysis(&mut self, a: &mtanet_offline::analyze::Analysis) {
         let seconds = |t: &mtanet_models::timescale::Timescale| t.steps.map(|s| s * a.step_s);
         let layer = |l: usize| a.layers.get(l);
         let r = |l| layer(l).and_then(|x| seconds(&x.r));

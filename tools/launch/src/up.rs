@@ -277,7 +277,7 @@ fn conclude(
     if let Err(e) = crate::baseline::write_rule_alone(file, track, out) {
         eprintln!("[up] no rule-alone baseline: {e:#}");
     }
-    let r = mtanet_report::write(out, &mtanet_analysis::strip::strip_on_track)?;
+    let r = mtanet_report::write(out, &mtanet_offline::analyze::strip::strip_on_track)?;
     eprintln!(
         "[up] {} steps ({:.0} s simulated) in {:.0} s; laps {} (active inference {}); control {}; report {}",
         r.steps,

@@ -1,13 +1,12 @@
 //! `mta`: the operator CLI, a thin shell over the crates that do the work: `mtanet-launch`
-//! (up, systemd), `mtanet-soak`, `mtanet-observe` (status, top), `mtanet-recording` (record,
+//! (up, systemd), `mtanet-soak`, `mtanet-observe` (status, top, record,
 //! replay), `mtanet-report` (report, plot), `mtanet-offline` (train, figures, synth, probe,
-//! drive, track), `mtanet-experiment` (experiment) and `mtanet-analysis` (analyze).
+//! drive, track, analyze) and `mtanet-experiment` (experiment).
 
 use clap::{Parser, Subcommand};
 use mtanet_launch::{systemd, up};
-use mtanet_observe::{status, top};
+use mtanet_observe::{record, replay, status, top};
 use mtanet_offline::{evaluate, figures, synth, track, train};
-use mtanet_recording::{record, replay};
 use mtanet_report::{plot, report};
 use mtanet_soak as soak;
 use mtanet_soak::pingpong;
@@ -66,7 +65,7 @@ enum Cmd {
     Experiment(mtanet_experiment::ExperimentArgs),
     /// Measure a checkpoint's layers on a drive: each layer's timescale, what it holds about the
     /// road (cross-validated read-outs against frame baselines), the paper's figure strip.
-    Analyze(mtanet_analysis::AnalyzeArgs),
+    Analyze(mtanet_offline::analyze::AnalyzeArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -82,13 +81,13 @@ fn main() -> anyhow::Result<()> {
         Cmd::Up(a) => up::run(a),
         Cmd::Record(a) => record::run(a),
         Cmd::Replay(a) => replay::run(a),
-        Cmd::Report(a) => report::run(a, &mtanet_analysis::strip::strip_on_track),
+        Cmd::Report(a) => report::run(a, &mtanet_offline::analyze::strip::strip_on_track),
         Cmd::Plot(a) => plot::run(a),
         Cmd::Probe(a) => evaluate::probe(a),
         Cmd::Drive(a) => evaluate::drive_cmd(a),
         Cmd::Track(a) => track::run(a),
         Cmd::Systemd(a) => systemd::run(a),
         Cmd::Experiment(a) => mtanet_experiment::run(a),
-        Cmd::Analyze(a) => mtanet_analysis::run(a),
+        Cmd::Analyze(a) => mtanet_offline::analyze::run(a),
     }
 }

@@ -4,9 +4,9 @@
 
 use std::path::PathBuf;
 
+use crate::analyze::figure::DEFAULT_FRAMES;
+use crate::analyze::held_out::analyse;
 use anyhow::Context;
-use mtanet_analysis::figure::DEFAULT_FRAMES;
-use mtanet_analysis::held_out::analyse;
 use mtanet_models::checkpoint;
 use mtanet_models::data::Dataset;
 

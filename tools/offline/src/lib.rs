@@ -1,7 +1,9 @@
 //! The offline tools over models, tracks and checkpoints, with no running stack: `mta train`,
-//! `mta synth`, `mta figures`, `mta probe` / `mta drive` (in-process active inference), and
-//! `mta track` (a generated track as a file).
+//! `mta synth`, `mta figures`, `mta probe` / `mta drive` (in-process active inference),
+//! `mta track` (a generated track as a file) and `mta analyze` (what a checkpoint's layers
+//! hold, [`analyze`]).
 
+pub mod analyze;
 pub mod evaluate;
 pub mod figures;
 pub mod synth;

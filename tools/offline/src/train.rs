@@ -4,10 +4,10 @@
 //! update), `epochs.jsonl` (held-out metrics per epoch), `checkpoint.safetensors` (latest, atomic),
 //! `model.safetensors` (final), `figure.png` (the paper's strip) and `metrics.json`.
 
+use crate::analyze::figure::DEFAULT_FRAMES;
+use crate::analyze::held_out as analysis;
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use mtanet_analysis::figure::DEFAULT_FRAMES;
-use mtanet_analysis::held_out as analysis;
 use mtanet_models::data::Dataset;
 use mtanet_models::eval::evaluate;
 use mtanet_models::{ModelConfig, TrainConfig, Trainer};

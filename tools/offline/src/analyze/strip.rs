@@ -1,10 +1,10 @@
 //! The model's figure strip on a track: the checkpoint run on a fresh drive of the track (the
-//! reactive rule with exploration, at the model's frame skip), drawn by [`crate::figure`].
+//! reactive rule with exploration, at the model's frame skip), drawn by [`super::figure`].
 //! `mta report` and the end of `mta up` put it in the run folder as `figure.png`.
 
 use std::path::Path;
 
-use crate::figure::DEFAULT_FRAMES;
+use super::figure::DEFAULT_FRAMES;
 use anyhow::Context;
 use mtanet_models::checkpoint;
 use mtanet_models::sequences::push_window;
@@ -25,6 +25,6 @@ pub fn strip_on_track(model: &Path, track: &Path, out: &Path) -> anyhow::Result<
     push_window(&frames, &applied, skip - 1, skip, len, &mut f, &mut a);
     let images = tch::Tensor::from_slice(&f).view([len as i64, 8, 12]);
     let actions = tch::Tensor::from_slice(&a).view([len as i64, 2]);
-    crate::figure::figure_strip(&net, &images, &actions, &DEFAULT_FRAMES, out)?;
+    super::figure::figure_strip(&net, &images, &actions, &DEFAULT_FRAMES, out)?;
     Ok(())
 }

@@ -34,8 +34,8 @@ use mtanet_scenes::SceneConfig;
 use serde::{Deserialize, Serialize};
 use tch::{Kind, Tensor};
 
-use crate::readout::{Folds, Readout, ridge_cv};
-use crate::targets::{TARGETS, Targets};
+use self::readout::{Folds, Readout, ridge_cv};
+use self::targets::{TARGETS, Targets};
 
 pub use table::print_table;
 

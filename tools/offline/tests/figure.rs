@@ -1,8 +1,8 @@
 //! The paper's figure strip: the frames that exist, with row and frame labels.
 
-use mtanet_analysis::figure::{FigureError, figure_strip};
 use mtanet_models::synth::{SynthConfig, generate};
 use mtanet_models::{ModelConfig, MtaPredNet};
+use mtanet_offline::analyze::figure::{FigureError, figure_strip};
 use tch::{Device, nn::VarStore};
 
 fn small(tau: Vec<f64>) -> ModelConfig {

@@ -2,7 +2,7 @@
 
 use std::io::Write;
 
-use crate::Analysis;
+use super::Analysis;
 use mtanet_models::timescale::Timescale;
 
 fn steps(t: &Timescale, step_s: f64) -> String {

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use mtanet_plot::{BLUE, GREEN, ORANGE, PURPLE, Panel, RED, Rgb, Series};
 
-use crate::{Analysis, Sequence};
+use super::{Analysis, Sequence};
 
 const PALETTE: [Rgb; 5] = [BLUE, ORANGE, GREEN, PURPLE, RED];
 
@@ -19,9 +19,9 @@ pub fn write(
 ) -> anyhow::Result<()> {
     timescales(&out.join("timescales.png"), a)?;
     context(&out.join("context.png"), a)?;
-    let frames = crate::figure::DEFAULT_FRAMES;
+    let frames = super::figure::DEFAULT_FRAMES;
     let last = (*frames.iter().max().unwrap_or(&1) + 1).min(seq.truth.len()) as i64;
-    crate::figure::figure_strip(
+    super::figure::figure_strip(
         model,
         &seq.images.narrow(0, 0, last),
         &seq.actions.narrow(0, 0, last),

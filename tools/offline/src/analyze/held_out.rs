@@ -9,7 +9,7 @@ use mtanet_models::eval::{EvalMetrics, evaluate};
 use mtanet_models::{ModelError, MtaPredNet};
 use serde::{Deserialize, Serialize};
 
-use crate::figure::{FigureError, FigureInfo, figure_strip};
+use super::figure::{FigureError, FigureInfo, figure_strip};
 
 /// Everything a run is judged by, computed on held-out data from any model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

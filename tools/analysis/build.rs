@@ -1,3 +1,0 @@
-fn main() {
-    mtanet_rpath::emit();
-}
