@@ -70,7 +70,7 @@ pub fn one_minute_soak(dir: &Path, config: &Path, extra: &[&str]) -> SoakReport 
     let text = std::fs::read_to_string(&log).unwrap_or_default();
     assert!(status.success(), "mta soak failed: {status}\n{text}");
     assert!(out.join("soak.png").exists(), "no soak.png\n{text}");
-    mtanet_files::read_json(&out.join("soak.json")).expect("reading soak.json")
+    mtanet_summaries::files::read_json(&out.join("soak.json")).expect("reading soak.json")
 }
 
 /// A stack config with a small network, so a test's trainer learns and publishes within

@@ -163,5 +163,5 @@ pub fn wait_until(what: &str, timeout: Duration, mut done: impl FnMut() -> bool)
 /// Reads a JSON file the stack wrote, typed (a service's `Summary`, or `serde_json::Value` for
 /// a file whose type lives in a binary); panics naming the file and the field it cannot read.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> T {
-    mtanet_files::read_json(path).unwrap_or_else(|e| panic!("{e}"))
+    mtanet_summaries::files::read_json(path).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -119,7 +119,7 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
             p => format!("{p}-generated-101"),
         };
         let run = out.join(variant).join("0").join(folder);
-        let report: Report = mtanet_files::read_json(&run.join("report.json")).unwrap();
+        let report: Report = mtanet_summaries::files::read_json(&run.join("report.json")).unwrap();
         for (name, want) in from_report(&report) {
             assert_eq!(
                 value(r, name),
@@ -140,7 +140,8 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
         if phase == "learn" {
             // The checkpoint's analysis: its figures in the row are those of analysis.json.
             let path = out.join(variant).join("0/analysis/analysis.json");
-            let a: mtanet_offline::analyze::Analysis = mtanet_files::read_json(&path).unwrap();
+            let a: mtanet_offline::analyze::Analysis =
+                mtanet_summaries::files::read_json(&path).unwrap();
             let r0 = a.layers[0].r.steps.map(|s| s * a.step_s);
             assert!(r0.is_some_and(|s| s > 0.0), "{path:?}: {:?}", a.layers[0]);
             assert_eq!(value(r, "timescale_r0_s"), r0);
@@ -195,7 +196,8 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
     }
     assert!(!md.contains("## Failed cells"), "{md}");
     // Each cell records the commit and CPU it ran on; the summary counts them.
-    let cell: serde_json::Value = mtanet_files::read_json(&out.join("paper/0/cell.json")).unwrap();
+    let cell: serde_json::Value =
+        mtanet_summaries::files::read_json(&out.join("paper/0/cell.json")).unwrap();
     let commit = cell["made_with"]["commit"].as_str().unwrap_or_default();
     assert!(!commit.is_empty(), "no commit in cell.json: {cell}");
     assert!(

@@ -1,10 +1,13 @@
 //! The figures the stack's processes and runs report, as plain serde types with no IPC, model or
 //! physics behind them: percentiles ([`LatencySummary`]), real-time incidents, each service's
-//! exit summary, the trainer's learning curve and the soak's report. The run report and its
-//! plots build on this crate alone; the services fill these types and re-export them.
+//! exit summary, the trainer's learning curve and the soak's report; the run folder's files
+//! ([`run_folder`], [`rows`] for CSV) and how every file is written and read ([`files`]:
+//! atomically, with errors that name the file). The run report and its plots build on this crate
+//! alone; the services fill these types and re-export them.
 
 pub mod agent;
 pub mod curve;
+pub mod files;
 pub mod incident;
 pub mod latency;
 pub mod planning;

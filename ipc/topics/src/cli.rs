@@ -58,7 +58,7 @@ impl CommonArgs {
     /// Writes the run summary if `--summary` was given.
     pub fn write_summary(&self, summary: &impl Serialize) -> anyhow::Result<()> {
         if let Some(path) = &self.summary {
-            mtanet_files::write_json(path, summary)
+            mtanet_summaries::files::write_json(path, summary)
                 .with_context(|| format!("writing {}", path.display()))?;
         }
         Ok(())

@@ -11,7 +11,7 @@ use serde::de::DeserializeOwned;
 pub enum ConfigError {
     /// The file could not be read or is not valid TOML.
     #[error(transparent)]
-    File(#[from] mtanet_files::FileError),
+    File(#[from] mtanet_summaries::files::FileError),
     /// A section has a wrong, unknown or badly typed key.
     #[error("config file {path}, section [{section}]: {message}")]
     Section {
@@ -42,13 +42,13 @@ impl ConfigFile {
     pub fn load(path: Option<&Path>) -> Result<Self, ConfigError> {
         match path {
             None => Ok(Self::default()),
-            Some(path) => Self::from_table(mtanet_files::read_table(path)?, path),
+            Some(path) => Self::from_table(mtanet_summaries::files::read_table(path)?, path),
         }
     }
 
     /// Parses a stack config held in memory (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
-        let table = toml::from_str(text).map_err(|e| mtanet_files::FileError::Toml {
+        let table = toml::from_str(text).map_err(|e| mtanet_summaries::files::FileError::Toml {
             path: path.into(),
             message: e.to_string(),
         })?;

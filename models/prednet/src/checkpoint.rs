@@ -75,7 +75,7 @@ pub enum CheckpointError {
     },
     /// Writing the file failed (it names the file).
     #[error(transparent)]
-    Write(#[from] mtanet_files::FileError),
+    Write(#[from] mtanet_summaries::files::FileError),
     /// The bytes are not a complete safetensors file (truncated, or the header is damaged).
     #[error("not a readable checkpoint (truncated or corrupt): {0}")]
     Corrupt(#[from] safetensors::SafeTensorError),
@@ -211,7 +211,7 @@ pub fn save(
     cfg: &ModelConfig,
     meta: &Meta,
 ) -> Result<(), CheckpointError> {
-    Ok(mtanet_files::write_bytes(
+    Ok(mtanet_summaries::files::write_bytes(
         path.as_ref(),
         &to_bytes(vs, cfg, meta)?,
     )?)

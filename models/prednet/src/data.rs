@@ -1,7 +1,7 @@
 //! Data sets: `images` float32 `[N, T, H, W]` in [0, 1] and `actions` float32 `[N, T, A]`, where
 //! `actions[:, t]` moved the world from frame t-1 to t, stored as a numpy `.npz`.
 
-use mtanet_files::NpzArray;
+use mtanet_summaries::files::NpzArray;
 use ndarray::ArrayD;
 use ndarray_npy::{NpzReader, ReadNpyError, ReadNpzError};
 use rand::SeedableRng;
@@ -155,7 +155,7 @@ impl Dataset {
         };
         let shape = |t: &Tensor| t.size().iter().map(|&d| d as usize).collect();
         let (images, actions) = (flat(&self.images)?, flat(&self.actions)?);
-        mtanet_files::write_npz(
+        mtanet_summaries::files::write_npz(
             path,
             &[
                 NpzArray {

@@ -246,7 +246,10 @@ impl Trainer {
         let meta = Meta::new(self.step, loss).with_probe(self.probe);
         checkpoint::save(path, &self.vs, &self.cfg, &meta)?;
         let moments = self.opt.to_bytes(&self.cfg, &meta)?;
-        Ok(mtanet_files::write_bytes(&optimizer_path(path), &moments)?)
+        Ok(mtanet_summaries::files::write_bytes(
+            &optimizer_path(path),
+            &moments,
+        )?)
     }
 
     /// Loads weights and the step counter from a checkpoint made with the same configuration

@@ -126,7 +126,7 @@ fn apply_flags(args: &Args, cfg: &mut SimulatorConfig) {
 /// `--write-mjcf`: written only after MuJoCo compiled it (World::new), so what is on disk loads.
 fn write_mjcf(scene: &SceneConfig, path: &Path) -> anyhow::Result<()> {
     let world = World::new(scene).context("loading the scene (simulator.scene.track)")?;
-    mtanet_files::write_bytes(path, world.mjcf().as_bytes())?;
+    mtanet_summaries::files::write_bytes(path, world.mjcf().as_bytes())?;
     println!("{}: the scene of {}", path.display(), scene.track.display());
     Ok(())
 }
@@ -157,7 +157,7 @@ fn teacher_only(
         .report
         .as_ref()
         .expect("clap requires --report with --teacher-only");
-    mtanet_files::write_json(path, &rep)?;
+    mtanet_summaries::files::write_json(path, &rep)?;
     Ok(())
 }
 

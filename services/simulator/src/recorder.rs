@@ -1,13 +1,13 @@
 //! Records a drive as a dataset `.npz`: `images` float32 `[N,T,H,W]` in [0,1] and `actions`
 //! float32 `[N,T,2]`, where `actions[:, t]` is the wheel command applied from frame t-1 to frame t
 //! (what moved the world there; the same convention as the replay chunks). Sequences are consecutive, non-overlapping windows;
-//! a partial window at the end is dropped. Written atomically (`mtanet_files`): a crash never
+//! a partial window at the end is dropped. Written atomically (`mtanet_summaries::files`): a crash never
 //! leaves a half-written dataset under the final name.
 
 use std::path::Path;
 
-use mtanet_files::NpzArray;
 use mtanet_scenes::{IMAGE_HEIGHT, IMAGE_PIXELS, IMAGE_WIDTH};
+use mtanet_summaries::files::NpzArray;
 
 pub struct Recorder {
     seq_len: usize,
@@ -46,7 +46,7 @@ impl Recorder {
             self.steps
         );
         let array = |name, shape, data| NpzArray { name, shape, data };
-        mtanet_files::write_npz(
+        mtanet_summaries::files::write_npz(
             path,
             &[
                 array(

@@ -102,7 +102,7 @@ where
     use serde::de::Error;
     let given = toml::Table::deserialize(d)?;
     let mut merged = toml::Table::try_from(default).map_err(D::Error::custom)?;
-    mtanet_files::merge_tables(&mut merged, &given);
+    mtanet_summaries::files::merge_tables(&mut merged, &given);
     merged.try_into().map_err(D::Error::custom)
 }
 

@@ -57,7 +57,7 @@ pub fn ensure(
 
 /// The analysis already in `path`, if it was made on this drive.
 fn made(path: &Path, track: &Path, o: &Options) -> Option<Analysis> {
-    let a: Analysis = mtanet_files::read_json(path).ok()?;
+    let a: Analysis = mtanet_summaries::files::read_json(path).ok()?;
     let same = a.track == track.display().to_string()
         && a.options.sim_seconds == o.sim_seconds
         && a.options.seed == o.seed;

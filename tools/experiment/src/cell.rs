@@ -79,7 +79,8 @@ pub fn run(cell: &Cell, heldout: &Path, live: &Live, slot: usize) -> Result<Cell
         wall_seconds: start.elapsed().as_secs_f64(),
         made_with: MadeWith::here(),
     };
-    mtanet_files::write_json(&cell.record_path(), &record).map_err(|e| no_log(e.into()))?;
+    mtanet_summaries::files::write_json(&cell.record_path(), &record)
+        .map_err(|e| no_log(e.into()))?;
     Ok(record)
 }
 

@@ -35,12 +35,15 @@ pub fn base(config: Option<&Path>) -> anyhow::Result<(toml::Table, String)> {
         .map(Path::to_path_buf)
         .or_else(|| Some(PathBuf::from("ops/mtanet.toml")).filter(|p| p.exists()));
     Ok(match source {
-        Some(p) => (mtanet_files::read_table(&p)?, p.display().to_string()),
+        Some(p) => (
+            mtanet_summaries::files::read_table(&p)?,
+            p.display().to_string(),
+        ),
         None => (toml::Table::new(), "<defaults>".into()),
     })
 }
 
-pub use mtanet_files::merge_tables as merge;
+pub use mtanet_summaries::files::merge_tables as merge;
 
 fn get<'a>(t: &'a toml::Table, dotted: &str) -> Option<&'a toml::Value> {
     let (path, last) = dotted.rsplit_once('.').unwrap_or(("", dotted));

@@ -26,7 +26,7 @@ pub fn ensure(
     // What the recording was made with: cells of one experiment must share one drive.
     let made_with = path.with_extension("json");
     if path.exists() {
-        let old: Heldout = mtanet_files::read_json(&made_with).with_context(|| {
+        let old: Heldout = mtanet_summaries::files::read_json(&made_with).with_context(|| {
             format!(
                 "{} has no record of how it was made: use another --out",
                 path.display()
@@ -51,16 +51,16 @@ pub fn ensure(
     let actions: Vec<f32> = applied.iter().flatten().copied().collect();
     let (h, w) = (mtanet_ipc::IMAGE_HEIGHT, mtanet_ipc::IMAGE_WIDTH);
     // The description first: a crash before the recording leaves no recording to trust.
-    mtanet_files::write_json(&made_with, spec)?;
-    mtanet_files::write_npz(
+    mtanet_summaries::files::write_json(&made_with, spec)?;
+    mtanet_summaries::files::write_npz(
         path,
         &[
-            mtanet_files::NpzArray {
+            mtanet_summaries::files::NpzArray {
                 name: "images",
                 shape: vec![1, steps, h, w],
                 data: &images,
             },
-            mtanet_files::NpzArray {
+            mtanet_summaries::files::NpzArray {
                 name: "actions",
                 shape: vec![1, steps, mtanet_ipc::ACTION_DIM],
                 data: &actions,

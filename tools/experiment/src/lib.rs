@@ -102,7 +102,7 @@ pub fn run(args: ExperimentArgs) -> anyhow::Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let text =
         std::fs::read(&args.file).with_context(|| format!("reading {}", args.file.display()))?;
-    mtanet_files::write_bytes(&args.out.join("experiment.toml"), &text)?;
+    mtanet_summaries::files::write_bytes(&args.out.join("experiment.toml"), &text)?;
     let heldout = args.out.join("heldout.npz");
     let scene = ConfigFile::parse(&toml::to_string(&base)?, Path::new(&origin))?
         .section::<mtanet_scenes::SceneConfig>("simulator.scene")?;
@@ -224,7 +224,7 @@ fn gather(
         match out {
             // As a later invocation will read it (JSON floats may differ in the last bit).
             Ok(_) => {
-                let r = mtanet_files::read_json(&cells[i].record_path())?;
+                let r = mtanet_summaries::files::read_json(&cells[i].record_path())?;
                 (records[i], failures[i]) = (Some(r), None)
             }
             // A run stopped by our own SIGTERM is not a failure: the cell runs next time.
@@ -234,7 +234,7 @@ fn gather(
                     error: format!("{:#}", e.error),
                     log: e.log,
                 };
-                mtanet_files::write_json(&cells[i].failure_path(), &f)?;
+                mtanet_summaries::files::write_json(&cells[i].failure_path(), &f)?;
                 failures[i] = Some(f);
             }
         }

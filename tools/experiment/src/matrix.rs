@@ -155,7 +155,7 @@ impl Cell {
     /// What the folder holds. A finished cell run with another matrix or config is an error:
     /// its results would be mixed with this experiment's.
     pub fn state(&self) -> anyhow::Result<State> {
-        match mtanet_files::read_json::<CellRecord>(&self.record_path()) {
+        match mtanet_summaries::files::read_json::<CellRecord>(&self.record_path()) {
             Ok(rec) if rec.key == self.key => return Ok(State::Done(rec)),
             Ok(rec) => bail!(
                 "{} was run with another experiment ({}): use another --out, or remove the folder to run it again",
@@ -165,7 +165,7 @@ impl Cell {
             Err(e) if e.is_not_found() => {}
             Err(e) => return Err(e.into()),
         }
-        match mtanet_files::read_json::<Failure>(&self.failure_path()) {
+        match mtanet_summaries::files::read_json::<Failure>(&self.failure_path()) {
             Ok(f) => Ok(State::Failed(f)),
             Err(e) if e.is_not_found() => Ok(State::Todo),
             Err(e) => Err(e.into()),
@@ -184,7 +184,10 @@ impl Cell {
         if let Some(toml::Value::Table(sim)) = eval.get_mut("simulator") {
             sim.remove("also_tracks");
         }
-        mtanet_files::write_bytes(&self.eval_config(), toml::to_string(&eval)?.as_bytes())?;
+        mtanet_summaries::files::write_bytes(
+            &self.eval_config(),
+            toml::to_string(&eval)?.as_bytes(),
+        )?;
         let mut learn = self.config.clone();
         let mut tracks: Vec<toml::Value> = learn
             .get("simulator")
@@ -199,7 +202,10 @@ impl Cell {
         if let (toml::Value::Table(sim), false) = (sim, tracks.is_empty()) {
             sim.insert("also_tracks".into(), toml::Value::Array(tracks));
         }
-        mtanet_files::write_bytes(&self.learn_config(), toml::to_string(&learn)?.as_bytes())?;
+        mtanet_summaries::files::write_bytes(
+            &self.learn_config(),
+            toml::to_string(&learn)?.as_bytes(),
+        )?;
         Ok(())
     }
 
@@ -288,7 +294,7 @@ mod tests {
             error: "boom".into(),
             log: None,
         };
-        mtanet_files::write_json(&c.failure_path(), &failure).unwrap();
+        mtanet_summaries::files::write_json(&c.failure_path(), &failure).unwrap();
         assert!(matches!(c.state().unwrap(), State::Failed(f) if f.error == "boom"));
         c.reset().unwrap();
         assert!(
@@ -301,7 +307,7 @@ mod tests {
             wall_seconds: 1.0,
             made_with: MadeWith::here(),
         };
-        mtanet_files::write_json(&c.record_path(), &rec).unwrap();
+        mtanet_summaries::files::write_json(&c.record_path(), &rec).unwrap();
         assert!(matches!(c.state().unwrap(), State::Done(_)));
         let other: toml::Table = toml::from_str("[trainer]\nnice = 5\n").unwrap();
         let changed = Cell::new(

@@ -229,7 +229,7 @@ impl Metrics {
 
     /// A run folder's metrics (without the held-out error).
     pub fn of_run(dir: &Path) -> anyhow::Result<Self> {
-        let r: Report = mtanet_files::read_json(&dir.join(run_folder::REPORT))?;
+        let r: Report = mtanet_summaries::files::read_json(&dir.join(run_folder::REPORT))?;
         let trace = std::fs::read_to_string(dir.join(run_folder::TRACE))
             .with_context(|| format!("reading {}", dir.join(run_folder::TRACE).display()))?;
         let samples = parse_trace(&trace)

@@ -35,7 +35,7 @@ pub fn write(dir: &Path, spec: &Spec, records: &[CellRecord]) -> anyhow::Result<
                 csv.push_str(&format!("{label},{v}\n"));
             }
         }
-        mtanet_files::write_bytes(&path.with_extension("csv"), csv.as_bytes())?;
+        mtanet_summaries::files::write_bytes(&path.with_extension("csv"), csv.as_bytes())?;
     }
     Ok(())
 }

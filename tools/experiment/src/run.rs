@@ -116,7 +116,8 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
     if !status.success() {
         bail!("mta up failed ({status}); see {}", log.display());
     }
-    let report: mtanet_report::Report = mtanet_files::read_json(&run.out.join(run_folder::REPORT))?;
+    let report: mtanet_report::Report =
+        mtanet_summaries::files::read_json(&run.out.join(run_folder::REPORT))?;
     let want = (run.sim_seconds / mtanet_ipc::CONTROL_PERIOD_S).round() as u64;
     if report.steps < want {
         bail!(

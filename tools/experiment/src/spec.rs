@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 pub enum SpecError {
     /// The file cannot be read, is not TOML, or has an unknown or badly typed key.
     #[error(transparent)]
-    File(#[from] mtanet_files::FileError),
+    File(#[from] mtanet_summaries::files::FileError),
     /// A value parsed but cannot be run.
     #[error("experiment {path}: {key} {message}")]
     Invalid {
@@ -145,7 +145,7 @@ impl Spec {
     /// Reads and checks `path`: unique, folder-safe variant names, seeds, durations, tracks
     /// that load (a file, or `generated:N`) and eval tracks with distinct folder names.
     pub fn load(path: &Path) -> Result<Self, SpecError> {
-        let spec: Spec = mtanet_files::read_toml(path)?;
+        let spec: Spec = mtanet_summaries::files::read_toml(path)?;
         spec.check(path)?;
         Ok(spec)
     }

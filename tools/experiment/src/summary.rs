@@ -50,7 +50,7 @@ pub fn results_csv(path: &Path, records: &[CellRecord]) -> anyhow::Result<()> {
         )?;
     }
     let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-    mtanet_files::write_bytes(path, &bytes)?;
+    mtanet_summaries::files::write_bytes(path, &bytes)?;
     Ok(())
 }
 
@@ -139,7 +139,7 @@ pub fn summary_md(path: &Path, x: &Inputs) -> anyhow::Result<()> {
     for (name, meaning) in NAMES {
         let _ = writeln!(md, "| `{name}` | {meaning} |");
     }
-    mtanet_files::write_bytes(path, md.as_bytes())?;
+    mtanet_summaries::files::write_bytes(path, md.as_bytes())?;
     Ok(())
 }
 

@@ -11,12 +11,13 @@ use mtanet_summaries::simulator::Summary as SimulatorSummary;
 /// Writes `rule_alone.json` in `out` for as many steps as the run's simulator made; nothing
 /// when the simulator left no summary (the report says why).
 pub fn write_rule_alone(file: &ConfigFile, track: &Path, out: &Path) -> anyhow::Result<()> {
-    let sim: SimulatorSummary =
-        match mtanet_files::read_json(&out.join(run_folder::summary_of("mta-simulator"))) {
-            Ok(s) => s,
-            Err(e) if e.is_not_found() => return Ok(()),
-            Err(e) => return Err(e.into()),
-        };
+    let sim: SimulatorSummary = match mtanet_summaries::files::read_json(
+        &out.join(run_folder::summary_of("mta-simulator")),
+    ) {
+        Ok(s) => s,
+        Err(e) if e.is_not_found() => return Ok(()),
+        Err(e) => return Err(e.into()),
+    };
     if sim.steps == 0 {
         return Ok(());
     }
@@ -41,6 +42,6 @@ pub fn write_rule_alone(file: &ConfigFile, track: &Path, out: &Path) -> anyhow::
         lateral_mean_m: r.lateral_reactive_m,
         lap_time_s: r.control.lap_time_s,
     };
-    mtanet_files::write_json(&out.join(RULE_ALONE_FILE), &baseline)?;
+    mtanet_summaries::files::write_json(&out.join(RULE_ALONE_FILE), &baseline)?;
     Ok(())
 }

@@ -26,7 +26,7 @@ pub fn effective_config(
         check(&ConfigFile::load(Some(p))?)?;
     }
     let mut table: toml::Table = match &source {
-        Some(p) => mtanet_files::read_table(p)?,
+        Some(p) => mtanet_summaries::files::read_table(p)?,
         None => toml::Table::new(),
     };
     let section = |t: &mut toml::Table, name: &str| -> anyhow::Result<toml::Table> {
@@ -66,7 +66,7 @@ pub fn effective_config(
         rule_only(&mut table)?;
     }
     let path = out.join(run_folder::STACK);
-    mtanet_files::write_bytes(&path, toml::to_string(&table)?.as_bytes())?;
+    mtanet_summaries::files::write_bytes(&path, toml::to_string(&table)?.as_bytes())?;
     check(&ConfigFile::load(Some(&path))?)?;
     Ok((path, ck_dir))
 }

@@ -157,7 +157,7 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         // The trainer lowers its own priority too; the unit says the same.
         let nice = (spec.binary == "mta-trainer").then_some(trainer.nice);
         let text = unit(launch, after, nice, &bin_s, &cfg_s, &args.user);
-        mtanet_files::write_bytes(&path, text.as_bytes())?;
+        mtanet_summaries::files::write_bytes(&path, text.as_bytes())?;
         println!("installed {}", path.display());
         wants.push(name);
     }
@@ -172,7 +172,7 @@ pub fn run(args: SystemdArgs) -> anyhow::Result<()> {
         wants.join(" ")
     );
     let path = args.dest.join("mtanet.target");
-    mtanet_files::write_bytes(&path, target.as_bytes())?;
+    mtanet_summaries::files::write_bytes(&path, target.as_bytes())?;
     println!("installed {}", path.display());
     Ok(())
 }

@@ -132,7 +132,7 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         checkpoint: args.checkpoint.clone(),
         config: args.config.clone(),
     };
-    mtanet_files::write_json(&out.join(run_folder::RUN), &info)?;
+    mtanet_summaries::files::write_json(&out.join(run_folder::RUN), &info)?;
     eprintln!(
         "[up] run folder {}; config {}",
         out.display(),
@@ -266,7 +266,7 @@ fn conclude(
 ) -> anyhow::Result<()> {
     let restarts = sup.restarts();
     let summary = mtanet_summaries::supervisor::SupervisorSummary { restarts };
-    mtanet_files::write_json(&out.join(run_folder::SUPERVISOR), &summary)?;
+    mtanet_summaries::files::write_json(&out.join(run_folder::SUPERVISOR), &summary)?;
     let latest = ck_dir.join(run_folder::LATEST);
     if latest.exists() {
         std::fs::copy(&latest, out.join(run_folder::MODEL))?;

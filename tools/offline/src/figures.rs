@@ -47,7 +47,7 @@ pub fn run(args: FiguresArgs) -> anyhow::Result<()> {
     for note in &report.notes {
         tracing::warn!("{note}");
     }
-    mtanet_files::write_json(&args.out.join("analysis.json"), &report)?;
+    mtanet_summaries::files::write_json(&args.out.join("analysis.json"), &report)?;
     println!(
         "step {}: mse {:.6}, copy-last {:.6} ({:.3}x), shuffled actions {:?}, top layer slower than bottom: {:?}; wrote {}",
         ck.meta.step,

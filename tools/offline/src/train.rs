@@ -118,7 +118,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         model: &run.model,
         train: &run.train,
     };
-    mtanet_files::write_json(&out("metrics.json"), &metrics)?;
+    mtanet_summaries::files::write_json(&out("metrics.json"), &metrics)?;
     tracing::info!(
         mse = eval.mse,
         copy_last_mse = eval.copy_last_mse,
@@ -135,7 +135,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
 /// output folder with the config as used.
 fn prepare(args: &TrainArgs) -> anyhow::Result<(RunConfig, Dataset, Dataset)> {
     let mut run: RunConfig = match &args.config {
-        Some(p) => mtanet_files::read_toml(p)?,
+        Some(p) => mtanet_summaries::files::read_toml(p)?,
         None => RunConfig::default(),
     };
     if let Some(s) = args.seed {
@@ -154,7 +154,7 @@ fn prepare(args: &TrainArgs) -> anyhow::Result<(RunConfig, Dataset, Dataset)> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let text = toml::to_string(&run).context("serialising config")?;
-    mtanet_files::write_bytes(&args.out.join("config.toml"), text.as_bytes())?;
+    mtanet_summaries::files::write_bytes(&args.out.join("config.toml"), text.as_bytes())?;
     Ok((run, train, held))
 }
 

@@ -100,7 +100,7 @@ struct Gate {
 
 impl Gate {
     fn of(dir: &Path) -> Self {
-        let table = mtanet_files::read_table(&dir.join(run_folder::STACK)).ok();
+        let table = mtanet_summaries::files::read_table(&dir.join(run_folder::STACK)).ok();
         let get = |key: &str, default: f64| {
             (table.as_ref())
                 .and_then(|t| {

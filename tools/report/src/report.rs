@@ -152,7 +152,7 @@ pub struct ReplayFigures {
 
 /// A summary, or `None` where the process wrote none.
 pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<Option<T>> {
-    match mtanet_files::read_json(path) {
+    match mtanet_summaries::files::read_json(path) {
         Ok(v) => Ok(Some(v)),
         Err(e) if e.is_not_found() => Ok(None),
         Err(e) => Err(e.into()),
@@ -243,7 +243,7 @@ pub fn write(dir: &Path, figure: &FigureStrip) -> anyhow::Result<Report> {
         },
         restarts: sup.map(|s| s.restarts).unwrap_or_default(),
     };
-    mtanet_files::write_json(&dir.join(run_folder::REPORT), &report)?;
+    mtanet_summaries::files::write_json(&dir.join(run_folder::REPORT), &report)?;
     draw_pictures(dir, &info.track, &sim, pred.as_ref(), figure)?;
     Ok(report)
 }

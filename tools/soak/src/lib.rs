@@ -105,9 +105,15 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         }
     }
     let summaries = Summaries {
-        sim: mtanet_files::read_json(&out.join(run_folder::summary_of("mta-simulator")))?,
-        pred: mtanet_files::read_json(&out.join(run_folder::summary_of("mta-predictor")))?,
-        trainer: mtanet_files::read_json(&out.join(run_folder::summary_of("mta-trainer")))?,
+        sim: mtanet_summaries::files::read_json(
+            &out.join(run_folder::summary_of("mta-simulator")),
+        )?,
+        pred: mtanet_summaries::files::read_json(
+            &out.join(run_folder::summary_of("mta-predictor")),
+        )?,
+        trainer: mtanet_summaries::files::read_json(
+            &out.join(run_folder::summary_of("mta-trainer")),
+        )?,
     };
     let leftovers = (nodes(&soak.ns), leftover_shm(&soak.ns));
     remove_namespace_files(&soak.ns);
@@ -129,7 +135,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     };
     let (beside, pred, sim) = (watched.floor.1.histogram(), &summaries.pred, &summaries.sim);
     let report = report::soak_report(&summaries, watched, &names);
-    mtanet_files::write_json(&out.join(run_folder::SOAK), &report)?;
+    mtanet_summaries::files::write_json(&out.join(run_folder::SOAK), &report)?;
     mtanet_report::latency_picture(
         &out.join("soak.png"),
         &[

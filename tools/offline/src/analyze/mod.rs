@@ -171,7 +171,7 @@ pub fn analyze_checkpoint(
     a.checkpoint = checkpoint.display().to_string();
     a.track = scene.track.display().to_string();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    mtanet_files::write_json(&out.join("analysis.json"), &a)?;
+    mtanet_summaries::files::write_json(&out.join("analysis.json"), &a)?;
     figures::write(out, &a, &model, &seq)?;
     Ok(a)
 }
