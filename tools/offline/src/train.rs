@@ -14,7 +14,7 @@ use mtanet_models::{ModelConfig, TrainConfig, Trainer};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::ops::ControlFlow;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
@@ -169,16 +169,7 @@ fn fit(
     parameters: i64,
 ) -> anyhow::Result<(Option<f64>, u64)> {
     let out = |name: &str| args.out.join(name);
-    let batches = (train.len() as u64).div_ceil(run.train.batch_size.max(1) as u64);
-    let windows = (train.steps() as u64).div_ceil(run.train.bptt.max(1) as u64);
-    let planned = (batches * windows * args.epochs).min(args.max_updates.unwrap_or(u64::MAX));
-    tracing::info!(
-        parameters,
-        train = ?train.images.size(),
-        eval = ?held.images.size(),
-        planned_updates = planned,
-        "training"
-    );
+    let planned = planned_updates(args, run, train, held, parameters);
     let bar = ProgressBar::new(planned).with_style(
         ProgressStyle::with_template(
             "{elapsed_precise} [{bar:30}] {pos}/{len} updates, eta {eta} {msg}",
@@ -228,24 +219,17 @@ fn fit(
             return Err(e).context("writing train_log.csv");
         }
         epochs_done = epoch + 1;
-        let m = evaluate(&trainer.model, held, 64, None).context("evaluating")?;
-        let line = serde_json::json!({"epoch": epochs_done, "updates": trainer.step(), "loss": last_loss,
-            "mse": m.mse, "copy_last_mse": m.copy_last_mse, "mse_over_copy_last": m.mse_over_copy_last,
-            "wall_time_s": start.elapsed().as_secs_f64()});
-        writeln!(epochs_log, "{line}")?;
-        // Through tracing (stderr) so that logs to a file keep them; the bar hides off a tty.
-        bar.suspend(|| {
-            tracing::info!(
-                epoch = epochs_done,
-                updates = trainer.step(),
-                mse = m.mse,
-                mse_over_copy_last = m.mse_over_copy_last,
-                "held-out"
-            )
-        });
-        trainer
-            .save_checkpoint(&out("checkpoint.safetensors"), last_loss)
-            .context("saving checkpoint")?;
+        let wall_s = start.elapsed().as_secs_f64();
+        let m = after_epoch(
+            trainer,
+            held,
+            epochs_done,
+            last_loss,
+            wall_s,
+            &bar,
+            &args.out,
+        )?;
+        writeln!(epochs_log, "{m}")?;
         if stop {
             break;
         }
@@ -253,6 +237,59 @@ fn fit(
     log.flush()?;
     bar.finish_with_message("done");
     Ok((last_loss, epochs_done))
+}
+
+/// The updates `fit` will make (logged with the data's shapes): the progress bar's length.
+fn planned_updates(
+    args: &TrainArgs,
+    run: &RunConfig,
+    train: &Dataset,
+    held: &Dataset,
+    parameters: i64,
+) -> u64 {
+    let batches = (train.len() as u64).div_ceil(run.train.batch_size.max(1) as u64);
+    let windows = (train.steps() as u64).div_ceil(run.train.bptt.max(1) as u64);
+    let planned = (batches * windows * args.epochs).min(args.max_updates.unwrap_or(u64::MAX));
+    tracing::info!(
+        parameters,
+        train = ?train.images.size(),
+        eval = ?held.images.size(),
+        planned_updates = planned,
+        "training"
+    );
+    planned
+}
+
+/// After an epoch: the held-out error (its `epochs.jsonl` line is returned), logged, and the
+/// checkpoint saved in `out`.
+fn after_epoch(
+    trainer: &Trainer,
+    held: &Dataset,
+    epoch: u64,
+    last_loss: Option<f64>,
+    wall_time_s: f64,
+    bar: &ProgressBar,
+    out: &Path,
+) -> anyhow::Result<serde_json::Value> {
+    let m = evaluate(&trainer.model, held, 64, None).context("evaluating")?;
+    // Through tracing (stderr) so that logs to a file keep them; the bar hides off a tty.
+    bar.suspend(|| {
+        tracing::info!(
+            epoch,
+            updates = trainer.step(),
+            mse = m.mse,
+            mse_over_copy_last = m.mse_over_copy_last,
+            "held-out"
+        )
+    });
+    trainer
+        .save_checkpoint(&out.join("checkpoint.safetensors"), last_loss)
+        .context("saving checkpoint")?;
+    Ok(
+        serde_json::json!({"epoch": epoch, "updates": trainer.step(), "loss": last_loss,
+        "mse": m.mse, "copy_last_mse": m.copy_last_mse, "mse_over_copy_last": m.mse_over_copy_last,
+        "wall_time_s": wall_time_s}),
+    )
 }
 
 /// Loads and concatenates data sets, naming the file that fails.

@@ -17,6 +17,26 @@ pub fn print_table(soak: &SoakReport) {
         "|{:-<20}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|{:-<11}|",
         "", "", "", "", "", ""
     );
+    print_targets(soak);
+    println!(
+        "overruns {}, missed commands {}, steps following the last plan {}, dropped commands {}, lost replay chunks {}",
+        soak.overruns,
+        soak.missed_commands,
+        soak.plan_followed,
+        soak.dropped_commands,
+        soak.replay.chunks_lost,
+    );
+    print_incidents_and_plans(soak);
+    for (name, p) in &soak.processes {
+        println!(
+            "{name} ({}): rss {} -> {} kB, fds {} -> {}",
+            p.scheduling, p.rss_kb.start, p.rss_kb.end, p.fds.start, p.fds.end
+        );
+    }
+}
+
+/// The latency table and whether it meets the targets.
+fn print_targets(soak: &SoakReport) {
     let leg = |k: &str| soak.latency.get(k).copied().unwrap_or_default();
     for k in LEGS {
         let p = leg(k);
@@ -40,14 +60,10 @@ pub fn print_table(soak: &SoakReport) {
         ratio,
         check(ratio <= 1.2)
     );
-    println!(
-        "overruns {}, missed commands {}, steps following the last plan {}, dropped commands {}, lost replay chunks {}",
-        soak.overruns,
-        soak.missed_commands,
-        soak.plan_followed,
-        soak.dropped_commands,
-        soak.replay.chunks_lost,
-    );
+}
+
+/// Machine pauses and what fell in them, who drove, and what the plans could afford.
+fn print_incidents_and_plans(soak: &SoakReport) {
     let (mp, inc) = (&soak.machine_pauses, &soak.incidents);
     println!(
         "machine pauses (a CPU that ran nothing for >= 3 ms): {} ({:.1}/min, worst {:.1} ms){}; missed commands {}, overruns {}, late plans {}: {} during a machine pause, {} the stack's own",
@@ -84,10 +100,4 @@ pub fn print_table(soak: &SoakReport) {
         pl.cost_p50,
         pl.rollout_us_per_candidate_segment_p50
     );
-    for (name, p) in &soak.processes {
-        println!(
-            "{name} ({}): rss {} -> {} kB, fds {} -> {}",
-            p.scheduling, p.rss_kb.start, p.rss_kb.end, p.fds.start, p.fds.end
-        );
-    }
 }

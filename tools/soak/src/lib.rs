@@ -11,9 +11,8 @@ pub mod pingpong;
 mod process;
 mod report;
 
-use mtanet_summaries::run_folder;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
@@ -24,6 +23,8 @@ use mtanet_launch::runcfg;
 use mtanet_launch::stack::{leftover_shm, nodes, remove_namespace_files, unique_namespace};
 use mtanet_launch::supervisor::{Event, Supervisor};
 use mtanet_report::print_table;
+use mtanet_summaries::files::{read_json, write_json};
+use mtanet_summaries::run_folder;
 
 use crate::load::CpuHog;
 use crate::pauses::PauseWatch;
@@ -104,17 +105,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let summaries = Summaries {
-        sim: mtanet_summaries::files::read_json(
-            &out.join(run_folder::summary_of("mta-simulator")),
-        )?,
-        pred: mtanet_summaries::files::read_json(
-            &out.join(run_folder::summary_of("mta-predictor")),
-        )?,
-        trainer: mtanet_summaries::files::read_json(
-            &out.join(run_folder::summary_of("mta-trainer")),
-        )?,
-    };
+    let summaries = read_summaries(&out)?;
     let leftovers = (nodes(&soak.ns), leftover_shm(&soak.ns));
     remove_namespace_files(&soak.ns);
     let names: Vec<String> = soak.stack.process.iter().map(|p| p.name.clone()).collect();
@@ -135,7 +126,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     };
     let (beside, pred, sim) = (watched.floor.1.histogram(), &summaries.pred, &summaries.sim);
     let report = report::soak_report(&summaries, watched, &names);
-    mtanet_summaries::files::write_json(&out.join(run_folder::SOAK), &report)?;
+    write_json(&out.join(run_folder::SOAK), &report)?;
     mtanet_report::latency_picture(
         &out.join("soak.png"),
         &[
@@ -151,6 +142,16 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         bail!("the stack left iceoryx2 resources behind: {leftovers:?}");
     }
     Ok(())
+}
+
+/// The three services' exit summaries in the run folder `out`.
+fn read_summaries(out: &Path) -> anyhow::Result<Summaries> {
+    let of = |name: &str| out.join(run_folder::summary_of(name));
+    Ok(Summaries {
+        sim: read_json(&of("mta-simulator"))?,
+        pred: read_json(&of("mta-predictor"))?,
+        trainer: read_json(&of("mta-trainer"))?,
+    })
 }
 
 /// The soak's run folder and stack, ready to start: the checked config, the track, the

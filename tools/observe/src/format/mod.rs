@@ -98,6 +98,93 @@ impl RecordingWriter<BufWriter<File>> {
     }
 }
 
+/// Each message topic's JSON channel: (topic, schema name, fields and their JSON types).
+const MESSAGE_CHANNELS: [(&str, &str, &[(&str, &str)]); 5] = [
+    (
+        names::OBSERVATION,
+        "mtanet.Observation",
+        &[
+            ("stamp_ns", "integer"),
+            ("step", "integer"),
+            ("sim_time_s", "number"),
+            ("image", "numbers"),
+            ("wheel_velocity", "numbers"),
+            ("command", "numbers"),
+            ("line_sensors", "numbers"),
+            ("episode", "integer"),
+            ("lockstep", "integer"),
+            ("truth", "object"),
+            ("raw", "bytes"),
+        ],
+    ),
+    (
+        names::COMMAND,
+        "mtanet.Command",
+        &[
+            ("stamp_ns", "integer"),
+            ("step", "integer"),
+            ("model_version", "integer"),
+            ("wheel_velocity", "numbers"),
+            ("source", "string"),
+            ("compute_us", "number"),
+            ("model_error_ratio", "number"),
+            ("probe", "number"),
+            ("plan_first_step", "integer"),
+            ("plan_segment_steps", "integer"),
+            ("plan", "numbers"),
+            ("raw", "bytes"),
+        ],
+    ),
+    (
+        names::REPLAY,
+        "mtanet.ReplayChunk",
+        &[
+            ("seq", "integer"),
+            ("first_step", "integer"),
+            ("len", "integer"),
+            ("episode", "integer"),
+            ("pace", "number"),
+            ("raw", "bytes"),
+        ],
+    ),
+    (
+        names::WEIGHTS,
+        "mtanet.Weights",
+        &[
+            ("version", "integer"),
+            ("train_step", "integer"),
+            ("len", "integer"),
+            ("loss", "number"),
+            ("probe", "number"),
+            ("raw", "bytes"),
+            ("blob", "bytes"),
+        ],
+    ),
+    (
+        names::TRAINER_STATUS,
+        "mtanet.TrainerStatus",
+        &[
+            ("updates", "integer"),
+            ("chunks_received", "integer"),
+            ("chunks_lost", "integer"),
+            ("sequences", "integer"),
+            ("training", "integer"),
+            ("raw", "bytes"),
+        ],
+    ),
+];
+
+/// Every channel of a recording, in the order they are added: (topic, schema name, JSON schema);
+/// the camera's Foxglove image channel comes second, after the observations it is cut from.
+fn channel_schemas() -> Vec<(&'static str, &'static str, Vec<u8>)> {
+    let mut out: Vec<_> = MESSAGE_CHANNELS
+        .iter()
+        .map(|&(topic, name, fields)| (topic, name, schema(name, fields)))
+        .collect();
+    out.insert(1, (CAMERA, "foxglove.RawImage", raw_image_schema()));
+    out
+}
+
 impl<W: Write + Seek> RecordingWriter<W> {
     pub fn new(w: W) -> anyhow::Result<Self> {
         let mut out = mcap::WriteOptions::new()
@@ -105,97 +192,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
             .profile("")
             .create(w)?;
         let mut channels = BTreeMap::new();
-        let specs: [(&'static str, &str, Vec<u8>); 6] = [
-            (
-                names::OBSERVATION,
-                "mtanet.Observation",
-                schema(
-                    "mtanet.Observation",
-                    &[
-                        ("stamp_ns", "integer"),
-                        ("step", "integer"),
-                        ("sim_time_s", "number"),
-                        ("image", "numbers"),
-                        ("wheel_velocity", "numbers"),
-                        ("command", "numbers"),
-                        ("line_sensors", "numbers"),
-                        ("episode", "integer"),
-                        ("lockstep", "integer"),
-                        ("truth", "object"),
-                        ("raw", "bytes"),
-                    ],
-                ),
-            ),
-            (CAMERA, "foxglove.RawImage", raw_image_schema()),
-            (
-                names::COMMAND,
-                "mtanet.Command",
-                schema(
-                    "mtanet.Command",
-                    &[
-                        ("stamp_ns", "integer"),
-                        ("step", "integer"),
-                        ("model_version", "integer"),
-                        ("wheel_velocity", "numbers"),
-                        ("source", "string"),
-                        ("compute_us", "number"),
-                        ("model_error_ratio", "number"),
-                        ("probe", "number"),
-                        ("plan_first_step", "integer"),
-                        ("plan_segment_steps", "integer"),
-                        ("plan", "numbers"),
-                        ("raw", "bytes"),
-                    ],
-                ),
-            ),
-            (
-                names::REPLAY,
-                "mtanet.ReplayChunk",
-                schema(
-                    "mtanet.ReplayChunk",
-                    &[
-                        ("seq", "integer"),
-                        ("first_step", "integer"),
-                        ("len", "integer"),
-                        ("episode", "integer"),
-                        ("pace", "number"),
-                        ("raw", "bytes"),
-                    ],
-                ),
-            ),
-            (
-                names::WEIGHTS,
-                "mtanet.Weights",
-                schema(
-                    "mtanet.Weights",
-                    &[
-                        ("version", "integer"),
-                        ("train_step", "integer"),
-                        ("len", "integer"),
-                        ("loss", "number"),
-                        ("probe", "number"),
-                        ("raw", "bytes"),
-                        ("blob", "bytes"),
-                    ],
-                ),
-            ),
-            (
-                names::TRAINER_STATUS,
-                "mtanet.TrainerStatus",
-                schema(
-                    "mtanet.TrainerStatus",
-                    &[
-                        ("updates", "integer"),
-                        ("chunks_received", "integer"),
-                        ("chunks_lost", "integer"),
-                        ("sequences", "integer"),
-                        ("training", "integer"),
-                        ("raw", "bytes"),
-                    ],
-                ),
-            ),
-        ];
-        for (topic, name, data) in specs {
+        for (topic, name, data) in channel_schemas() {
             let schema = out.add_schema(name, "jsonschema", &data)?;
             let id = out.add_channel(schema, topic, "json", &BTreeMap::new())?;
             channels.insert(topic, id);
