@@ -7,7 +7,9 @@
 //! exact bytes in base64, which is what replay decodes, so a replayed observation is bit for bit
 //! the one recorded. The camera also goes to `mtanet/camera` as a `foxglove.RawImage` (mono8)
 //! for Foxglove's image panel. Messages are stamped (log and publish time) with their own
-//! `CLOCK_MONOTONIC` stamp. Chunks are zstd-compressed and closed every `flush`, so a recorder
+//! `CLOCK_MONOTONIC` stamp plus the recording's offset from it to the Unix epoch, taken when the
+//! recording starts and kept in its `mtanet.clock` metadata, so Foxglove shows real dates and the
+//! monotonic stamps can be recovered. Chunks are zstd-compressed and closed every `flush`, so a recorder
 //! killed mid-run leaves a file readable up to its last flush.
 
 mod read;
@@ -31,6 +33,16 @@ use mtanet_ipc::{
 use serde_json::{Value, json};
 
 pub const CAMERA: &str = "mtanet/camera";
+/// The metadata record holding the clock offset of the message times.
+pub const CLOCK_METADATA: &str = "mtanet.clock";
+
+/// Unix time minus `CLOCK_MONOTONIC` now, in ns: what turns a message's stamp into a date.
+pub fn monotonic_to_unix_offset_ns() -> u64 {
+    let unix = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    unix.saturating_sub(mtanet_ipc::stamp::monotonic_ns())
+}
 
 /// A message read back from a recording.
 #[derive(Debug, Clone)]
@@ -87,6 +99,8 @@ pub struct RecordingWriter<W: Write + Seek> {
     out: mcap::Writer<W>,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
+    /// Unix time minus `CLOCK_MONOTONIC`, ns, when the recording started.
+    clock_offset_ns: u64,
     /// Messages written per channel.
     pub counts: BTreeMap<&'static str, u64>,
 }
@@ -191,6 +205,14 @@ impl<W: Write + Seek> RecordingWriter<W> {
             .compression(Some(mcap::Compression::Zstd))
             .profile("")
             .create(w)?;
+        let clock_offset_ns = monotonic_to_unix_offset_ns();
+        out.write_metadata(&mcap::records::Metadata {
+            name: CLOCK_METADATA.into(),
+            metadata: BTreeMap::from([(
+                "monotonic_to_unix_offset_ns".to_string(),
+                clock_offset_ns.to_string(),
+            )]),
+        })?;
         let mut channels = BTreeMap::new();
         for (topic, name, data) in channel_schemas() {
             let schema = out.add_schema(name, "jsonschema", &data)?;
@@ -201,6 +223,7 @@ impl<W: Write + Seek> RecordingWriter<W> {
             out,
             channels,
             sequence: 0,
+            clock_offset_ns,
             counts: BTreeMap::new(),
         })
     }
@@ -211,8 +234,8 @@ impl<W: Write + Seek> RecordingWriter<W> {
         let header = mcap::records::MessageHeader {
             channel_id,
             sequence: self.sequence,
-            log_time: stamp_ns,
-            publish_time: stamp_ns,
+            log_time: stamp_ns.saturating_add(self.clock_offset_ns),
+            publish_time: stamp_ns.saturating_add(self.clock_offset_ns),
         };
         self.out
             .write_to_known_channel(&header, &serde_json::to_vec(v)?)?;

@@ -13,6 +13,7 @@ use super::{CAMERA, Recorded};
 /// What a recording holds, in the order of its stamps.
 #[derive(Debug, Default)]
 pub struct Reading {
+    /// (log time: the message's stamp plus the recording's clock offset, ns; the message).
     pub messages: Vec<(u64, Recorded)>,
     /// Why reading stopped early (a truncated or damaged file): what came before is kept.
     pub damaged: Option<String>,

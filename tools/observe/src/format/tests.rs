@@ -102,3 +102,42 @@ fn a_truncated_recording_replays_what_is_readable_and_says_so() {
     let e = read(&junk).unwrap_err();
     assert!(format!("{e:#}").contains("junk.mcap"), "{e:#}");
 }
+
+#[test]
+fn message_times_are_dates_the_offset_kept_in_the_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("r.mcap");
+    let mut w = RecordingWriter::create(&path).unwrap();
+    let mut o = obs(0);
+    o.stamp_ns = mtanet_ipc::stamp::monotonic_ns();
+    w.observation(&o).unwrap();
+    w.finish().unwrap();
+    let now_unix = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64;
+    let buf = std::fs::read(&path).unwrap();
+    let m = mcap::MessageStream::new(&buf)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap();
+    // A date of today (within a minute), not seconds since boot.
+    assert!(
+        now_unix.abs_diff(m.log_time) < 60_000_000_000,
+        "{} vs {now_unix}",
+        m.log_time
+    );
+    let summary = mcap::Summary::read(&buf).unwrap().unwrap();
+    let index = &summary.metadata_indexes[0];
+    assert_eq!(index.name, CLOCK_METADATA);
+    let meta = mcap::read::metadata(&buf, index).unwrap();
+    let offset: u64 = meta.metadata["monotonic_to_unix_offset_ns"]
+        .parse()
+        .unwrap();
+    assert_eq!(
+        m.log_time - offset,
+        o.stamp_ns,
+        "the stamp comes back exactly"
+    );
+}
