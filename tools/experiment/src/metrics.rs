@@ -2,10 +2,10 @@
 //! simulator's `trace.csv` (`step,episode,x,y,lateral_m,source`, every n-th step), for the
 //! takeover time. The held-out next-frame error is the cell's (`heldout.rs`).
 
+use mtanet_summaries::rows::{self, TraceRow};
 use mtanet_summaries::run_folder;
 use std::path::Path;
 
-use anyhow::Context;
 use mtanet_report::Report;
 use serde::{Deserialize, Serialize};
 
@@ -230,10 +230,7 @@ impl Metrics {
     /// A run folder's metrics (without the held-out error).
     pub fn of_run(dir: &Path) -> anyhow::Result<Self> {
         let r: Report = mtanet_summaries::files::read_json(&dir.join(run_folder::REPORT))?;
-        let trace = std::fs::read_to_string(dir.join(run_folder::TRACE))
-            .with_context(|| format!("reading {}", dir.join(run_folder::TRACE).display()))?;
-        let samples = parse_trace(&trace)
-            .with_context(|| format!("parsing {}", dir.join(run_folder::TRACE).display()))?;
+        let samples = ai_samples(&rows::read::<TraceRow>(&dir.join(run_folder::TRACE))?);
         Ok(Self {
             takeover_s: takeover_s(&samples, r.steps, TAKEOVER_WINDOW_S, TAKEOVER_SHARE),
             laps: Some(r.laps.completed as f64),
@@ -263,10 +260,9 @@ fn after_first_share(laps: &mtanet_report::report::Laps) -> Option<f64> {
 }
 
 /// (step, active inference drove) per trace row.
-pub fn parse_trace(text: &str) -> anyhow::Result<Vec<(u64, bool)>> {
+pub fn ai_samples(rows: &[TraceRow]) -> Vec<(u64, bool)> {
     let ai = mtanet_ipc::CommandSource::ActiveInference.name();
-    let rows = mtanet_summaries::rows::parse::<mtanet_summaries::rows::TraceRow>(text)?;
-    Ok(rows.iter().map(|r| (r.step, r.source == ai)).collect())
+    rows.iter().map(|r| (r.step, r.source == ai)).collect()
 }
 
 /// Simulated seconds until active inference first drives and then holds the wheel for at least
@@ -340,6 +336,7 @@ mod tests {
     fn the_trace_is_read_by_its_header() {
         let text =
             "step,episode,x,y,lateral_m,source\n0,0,0,0,0,reactive\n5,0,0,0,0,active_inference\n";
+        let parse_trace = |t: &str| rows::parse::<TraceRow>(t).map(|r| ai_samples(&r));
         assert_eq!(parse_trace(text).unwrap(), vec![(0, false), (5, true)]);
         assert!(
             parse_trace("step,episode\n0,0\n").is_err(),
