@@ -128,6 +128,17 @@ pub enum ConfigError {
 }
 
 impl ModelConfig {
+    /// A small network (4, 6 and 8 channels) with the given taus: built and stepped in
+    /// milliseconds, for tests and examples.
+    pub fn small(tau: &[f64]) -> Self {
+        Self {
+            channels: vec![4, 6, 8],
+            a_channels: vec![1, 4, 6],
+            tau: tau.to_vec(),
+            ..Default::default()
+        }
+    }
+
     /// Number of layers.
     pub fn layers(&self) -> usize {
         self.channels.len()

@@ -7,11 +7,7 @@ use std::process::Command;
 use tch::{Device, Kind, Tensor, nn::VarStore};
 
 fn small() -> ModelConfig {
-    ModelConfig {
-        channels: vec![4, 6, 8],
-        a_channels: vec![1, 4, 6],
-        ..Default::default()
-    }
+    ModelConfig::small(&ModelConfig::default().tau)
 }
 
 fn model(cfg: &ModelConfig, seed: i64) -> (VarStore, MtaPredNet) {

@@ -7,12 +7,7 @@ use tch::{Device, Kind, Tensor, nn};
 const F: (Kind, Device) = (Kind::Float, Device::Cpu);
 
 fn small(tau: [f64; 3]) -> ModelConfig {
-    ModelConfig {
-        channels: vec![4, 6, 8],
-        a_channels: vec![1, 4, 6],
-        tau: tau.to_vec(),
-        ..Default::default()
-    }
+    ModelConfig::small(&tau)
 }
 
 fn build(cfg: &ModelConfig, seed: i64) -> (nn::VarStore, MtaPredNet) {

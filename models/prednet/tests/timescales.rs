@@ -10,12 +10,7 @@ use tch::{Device, nn::VarStore};
 static TORCH_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn small(tau: Vec<f64>) -> ModelConfig {
-    ModelConfig {
-        channels: vec![4, 6, 8],
-        a_channels: vec![1, 4, 6],
-        tau,
-        ..Default::default()
-    }
+    ModelConfig::small(&tau)
 }
 
 #[test]

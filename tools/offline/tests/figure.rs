@@ -5,20 +5,11 @@ use mtanet_models::{ModelConfig, MtaPredNet};
 use mtanet_offline::analyze::figure::{FigureError, figure_strip};
 use tch::{Device, nn::VarStore};
 
-fn small(tau: Vec<f64>) -> ModelConfig {
-    ModelConfig {
-        channels: vec![4, 6, 8],
-        a_channels: vec![1, 4, 6],
-        tau,
-        ..Default::default()
-    }
-}
-
 #[test]
 fn figure_strip_draws_the_frames_that_exist() {
     tch::set_num_threads(1);
     let vs = VarStore::new(Device::Cpu);
-    let m = MtaPredNet::new(&vs.root(), &small(vec![1.0, 1.3, 2.0]));
+    let m = MtaPredNet::new(&vs.root(), &ModelConfig::small(&[1.0, 1.3, 2.0]));
     let data = generate(&SynthConfig {
         sequences: 1,
         steps: 60,

@@ -72,6 +72,23 @@ fn still_planner() -> Inline<Still> {
     )
 }
 
+/// A plan for `segment`: straight on at 8 rad/s for 4 segments.
+fn straight_on(segment: u64) -> PlanDone {
+    PlanDone {
+        segment,
+        outcome: Ok(Outcome {
+            plan: vec![Drive::from_wheels([8.0, 8.0]); 4],
+            terms: Some(crate::cost::Terms::default()),
+            evaluations: 0,
+            iterations: 1,
+            candidates: 1,
+            cut: false,
+            rollout_s_per_candidate_segment: None,
+        }),
+        compute: Duration::ZERO,
+    }
+}
+
 /// A planner that answers its first job (so active inference can take over) and no other; it
 /// records the longest wait asked of it.
 #[derive(Default)]
@@ -94,20 +111,7 @@ impl PlanService<f32> for FirstOnly {
         }
         self.answered = true;
         self.job = None;
-        let plan = vec![Drive::from_wheels([8.0, 8.0]); 4];
-        Some(PlanDone {
-            segment,
-            outcome: Ok(Outcome {
-                plan,
-                terms: Some(crate::cost::Terms::default()),
-                evaluations: 0,
-                iterations: 1,
-                candidates: 1,
-                cut: false,
-                rollout_s_per_candidate_segment: None,
-            }),
-            compute: Duration::ZERO,
-        })
+        Some(straight_on(segment))
     }
     fn idle(&self) -> bool {
         self.job.is_none()
@@ -373,20 +377,7 @@ impl PlanService<f32> for Slow {
             return None;
         }
         let segment = self.job.take()?;
-        let plan = vec![Drive::from_wheels([8.0, 8.0]); 4];
-        Some(PlanDone {
-            segment,
-            outcome: Ok(Outcome {
-                plan,
-                terms: Some(crate::cost::Terms::default()),
-                evaluations: 0,
-                iterations: 1,
-                candidates: 1,
-                cut: false,
-                rollout_s_per_candidate_segment: None,
-            }),
-            compute: Duration::ZERO,
-        })
+        Some(straight_on(segment))
     }
     fn idle(&self) -> bool {
         self.job.is_none()
