@@ -9,6 +9,15 @@ use std::time::{Duration, Instant};
 use mtanet_ipc::node::NodeCensus;
 use mtanet_launch::stack::{bin_dir, nodes};
 
+pub use rustix::process::Signal;
+
+/// Sends `sig` to process `pid` (a child of the test; a pid that is gone is no error).
+pub fn signal(pid: u32, sig: Signal) {
+    if let Some(pid) = rustix::process::Pid::from_raw(pid as i32) {
+        let _ = rustix::process::kill_process(pid, sig);
+    }
+}
+
 /// A path as a command-line argument (the tests' temporary paths are UTF-8).
 pub fn arg(p: &Path) -> &str {
     p.to_str().expect("a UTF-8 path")
@@ -75,9 +84,8 @@ impl Proc {
         self.child.id() as i32
     }
 
-    pub fn signal(&self, sig: i32) {
-        // SAFETY: plain kill(2) on our own child's pid.
-        unsafe { libc::kill(self.pid(), sig) };
+    pub fn signal(&self, sig: Signal) {
+        signal(self.child.id(), sig);
     }
 
     /// Waits for exit up to `timeout`; panics with the log tail if it does not exit.

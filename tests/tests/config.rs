@@ -214,7 +214,7 @@ fn mta_up_refuses_a_namespace_in_use() {
     );
     let left = std::fs::read_dir(dir.path().join("runs")).map_or(0, |d| d.count());
     assert_eq!(left, 0, "a run folder was left");
-    predictor.signal(libc::SIGTERM);
+    predictor.signal(Signal::TERM);
     assert!(predictor.wait(std::time::Duration::from_secs(20)).success());
     remove_namespace_files(&ns);
 }

@@ -114,10 +114,9 @@ fn paused_for_a_plan_without_a_miss(
         planning,
         "active inference never drove with a plan of 3 segments"
     );
-    // SAFETY: signals to a child of this test.
-    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    signal(pid as u32, Signal::STOP);
     std::thread::sleep(Duration::from_millis(100)); // the fault itself: a stopped process
-    unsafe { libc::kill(pid, libc::SIGCONT) };
+    signal(pid as u32, Signal::CONT);
     let resumed = mtanet_ipc::stamp::monotonic_ns();
     assert!(
         stepping(cmds, sup, Duration::from_secs(5)).is_some(),
@@ -207,8 +206,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         }
         let pid = sup.pid(victim).unwrap();
         let t0 = Instant::now();
-        // SAFETY: kill(2) on a child of this test.
-        unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        signal(pid, Signal::KILL);
         let mut restarted = false;
         while t0.elapsed() < Duration::from_secs(10) && !restarted {
             restarted = sup
@@ -322,10 +320,9 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     );
     let pid = sup.pid("predictor").unwrap() as i32;
     paused_for_a_plan_without_a_miss(&ns, pid, &cmds, &mut sup);
-    // SAFETY: signals to a child of this test.
-    unsafe { libc::kill(pid, libc::SIGSTOP) };
+    signal(pid as u32, Signal::STOP);
     std::thread::sleep(Duration::from_secs(1)); // the fault itself: a stopped process
-    unsafe { libc::kill(pid, libc::SIGCONT) };
+    signal(pid as u32, Signal::CONT);
     assert!(
         stepping(&cmds, &mut sup, Duration::from_secs(5)).is_some(),
         "no recovery after SIGCONT"

@@ -44,7 +44,7 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
         s.weights_installed >= 1
     });
     // The trainer stops publishing when we stop it; then a damaged blob arrives on the topic.
-    trainer.signal(libc::SIGTERM);
+    trainer.signal(Signal::TERM);
     assert!(
         trainer.wait(Duration::from_secs(30)).success(),
         "{}",
@@ -95,7 +95,7 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
     stats.wait_for("predictor", Duration::from_secs(30), |s| {
         s.weights_installed > before
     });
-    trainer2.signal(libc::SIGTERM);
+    trainer2.signal(Signal::TERM);
     assert!(
         trainer2.wait(Duration::from_secs(30)).success(),
         "{}",
@@ -112,7 +112,7 @@ fn weights_reach_the_predictor_survive_a_trainer_restart_and_damaged_ones_are_re
         "a damaged checkpoint must not stop the stack"
     );
     for p in [&sim, &predictor] {
-        p.signal(libc::SIGTERM);
+        p.signal(Signal::TERM);
     }
     assert!(
         sim.wait(Duration::from_secs(20)).success(),
@@ -177,7 +177,7 @@ fn a_stopped_trainer_saves_the_updates_it_had_not_published() {
     let latest = ck_dir.join("latest.safetensors");
     assert!(!latest.exists(), "nothing should be saved before the stop");
     for p in [&predictor, &trainer] {
-        p.signal(libc::SIGTERM);
+        p.signal(Signal::TERM);
     }
     for p in [&mut predictor, &mut trainer] {
         assert!(

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::Command;
 
 use mtanet_models::checkpoint;
-use mtanet_system_tests::{bin, here};
+use mtanet_system_tests::{Signal, bin, here};
 
 /// The committed checkpoint with one weight set to NaN, saved as `dir/nan.safetensors`.
 fn nan_checkpoint(dir: &Path) -> std::path::PathBuf {
@@ -147,7 +147,7 @@ fn a_model_whose_error_overflows_mid_run_hands_the_wheel_to_the_rule() {
     let last = stats.wait_for("predictor", Duration::from_secs(5), |_| true);
     assert_ne!(last.driver, ai, "{last:?}");
     for p in [&sim, &predictor] {
-        p.signal(libc::SIGTERM);
+        p.signal(Signal::TERM);
     }
     assert!(
         sim.wait(Duration::from_secs(30)).success(),

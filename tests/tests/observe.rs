@@ -11,7 +11,8 @@ use mtanet_observe::record::RecordSummary;
 use mtanet_observe::replay::ReplaySummary;
 use mtanet_report::report::Report;
 use mtanet_system_tests::{
-    Proc, arg, bin, nodes, read_json, remove_namespace_files, unique_namespace, wait_for_alive,
+    Proc, Signal, arg, bin, nodes, read_json, remove_namespace_files, unique_namespace,
+    wait_for_alive,
 };
 
 fn data(p: &str) -> PathBuf {
@@ -228,7 +229,7 @@ fn a_recorded_lockstep_run_replays_to_the_same_commands_bit_for_bit() {
         "{s:#?}"
     );
 
-    predictor.signal(libc::SIGTERM);
+    predictor.signal(Signal::TERM);
     assert!(predictor.wait(Duration::from_secs(20)).success());
     for n in [&ns, &ns2] {
         let c = nodes(n);

@@ -7,8 +7,8 @@ use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::*;
 use mtanet_trainer::service::Summary as TrainerSummary;
 
-const SIGTERM: i32 = libc::SIGTERM;
-const SIGKILL: i32 = libc::SIGKILL;
+const SIGTERM: Signal = Signal::TERM;
+const SIGKILL: Signal = Signal::KILL;
 
 /// After a stack is gone: no node alive or dead, no shared memory left but the node counter.
 fn assert_namespace_clean(ns: &str) {
@@ -114,9 +114,9 @@ fn lockstep_without_a_trainer_waits_out_a_stopped_predictor() {
     let mut sim = start("mta-simulator", &run, &["--mode", "lockstep"], dir.path());
     let stats = StatsWatch::open(&ns);
     stats.wait_for("predictor", Duration::from_secs(30), |s| s.count > 0);
-    predictor.signal(libc::SIGSTOP);
+    predictor.signal(Signal::STOP);
     std::thread::sleep(Duration::from_secs(1)); // the fault itself: a stopped process
-    predictor.signal(libc::SIGCONT);
+    predictor.signal(Signal::CONT);
     assert!(
         sim.is_running(),
         "the run ended before the stop was over: make it longer"
@@ -248,7 +248,7 @@ fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
     // Frozen inside its loop (it reports from there), subscribed but not yet connected to any
     // simulator.
     stats.wait_for("trainer", Duration::from_secs(60), |_| true);
-    trainer.signal(libc::SIGSTOP);
+    trainer.signal(Signal::STOP);
     // Unpaced: a paced lockstep simulator waits for its trainer (it learns on a schedule), a
     // free-running one (real time, or lockstep without pacing) does not.
     let free = ["--mode", "lockstep", "--expect-trainer", "--pace", "0"];
@@ -259,7 +259,7 @@ fn a_trainer_that_missed_the_whole_run_still_gets_the_chunks() {
         sim.is_running(),
         "the simulator did not linger for its subscriber"
     );
-    trainer.signal(libc::SIGCONT);
+    trainer.signal(Signal::CONT);
     drop(stats); // its node must be gone before the namespace is checked
     exit_ok(&mut sim);
     for p in [&predictor, &trainer] {

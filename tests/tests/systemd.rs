@@ -149,8 +149,7 @@ fn predictor_notifies_ready_watchdog_and_stopping() {
             seen.push('\n');
         }
         if !signalled && seen.contains("READY=1") && seen.matches("WATCHDOG=1").count() >= 2 {
-            // SAFETY: kill(2) on our own child.
-            unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+            signal(child.id(), Signal::TERM);
             signalled = true;
         }
     }

@@ -16,7 +16,8 @@ use mtanet_ipc::{ReplayChunk, WeightsHeader, names, stamp};
 use mtanet_predictor::service::Summary as PredictorSummary;
 use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::{
-    Proc, Run, read_json, remove_namespace_files, run_in, start, summary, unique_namespace,
+    Proc, Run, Signal, read_json, remove_namespace_files, run_in, signal, start, summary,
+    unique_namespace,
 };
 use mtanet_trainer::service::Summary as TrainerSummary;
 
@@ -33,8 +34,7 @@ struct Tunnel(Child, PathBuf);
 
 impl Drop for Tunnel {
     fn drop(&mut self) {
-        // SAFETY: kill(2) on our child.
-        unsafe { libc::kill(self.0.id() as i32, libc::SIGINT) };
+        signal(self.0.id(), Signal::INT);
         let t0 = Instant::now();
         while t0.elapsed() < Duration::from_secs(5) {
             if self.0.try_wait().ok().flatten().is_some() {
@@ -307,7 +307,7 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         full(&sim)
     );
     for p in [&pr, &tr] {
-        p.signal(libc::SIGTERM);
+        p.signal(Signal::TERM);
     }
     assert!(pr.wait(Duration::from_secs(30)).success(), "{}", full(&pr));
     assert!(tr.wait(Duration::from_secs(30)).success(), "{}", full(&tr));

@@ -1,5 +1,10 @@
 //! Scheduling, in one place: the classes and niceness of the stack's processes and threads,
-//! whether the 50 Hz path can run real-time here, and what a process got.
+//! the CPUs they may run on, whether the 50 Hz path can run real-time here, and what a process
+//! got. Through rustix where it has the call; SCHED_FIFO (`sched_setscheduler` and its getters)
+//! only through libc, which rustix does not cover.
+
+use rustix::process::{Pid, getpriority_process, setpriority_process};
+use rustix::thread::{CpuSet, sched_getaffinity, sched_setaffinity};
 
 use crate::stack::StackConfig;
 
@@ -39,9 +44,7 @@ pub fn set_thread_normal(nice: i32) -> bool {
     // SAFETY: sched_setscheduler(2) with pid 0 changes the calling thread only.
     unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal) };
     // Linux: a thread's niceness is set through its thread id.
-    // SAFETY: gettid(2), and setpriority(2) on this thread only.
-    let tid = unsafe { libc::gettid() } as libc::id_t;
-    unsafe { libc::setpriority(libc::PRIO_PROCESS, tid, nice) == 0 }
+    setpriority_process(Some(rustix::thread::gettid()), nice).is_ok()
 }
 
 /// The calling thread's SCHED_FIFO priority, if it runs under SCHED_FIFO.
@@ -56,13 +59,33 @@ pub fn thread_fifo_priority() -> Option<i32> {
 
 /// Pins the calling thread to `cpu`; false when refused.
 pub fn pin_thread(cpu: usize) -> bool {
-    // SAFETY: a zeroed cpu_set_t is the empty set; sched_setaffinity(2) with pid 0 changes the
-    // calling thread only.
-    unsafe {
-        let mut set: libc::cpu_set_t = std::mem::zeroed();
-        libc::CPU_SET(cpu, &mut set);
-        libc::sched_setaffinity(0, std::mem::size_of_val(&set), &set) == 0
+    set_affinity(&[cpu]).is_ok()
+}
+
+/// The most CPUs an affinity set can name.
+pub const MAX_CPUS: usize = CpuSet::MAX_CPU;
+
+/// Confines the calling thread (and the threads and processes it starts later) to `cpus`.
+pub fn set_affinity(cpus: &[usize]) -> std::io::Result<()> {
+    let mut set = CpuSet::new();
+    for &c in cpus {
+        set.set(c);
     }
+    sched_setaffinity(None, &set).map_err(Into::into)
+}
+
+/// The CPUs the calling thread may run on (`[0]` if that cannot be read).
+pub fn allowed_cpus() -> Vec<usize> {
+    match sched_getaffinity(None) {
+        Ok(set) => (0..MAX_CPUS).filter(|&c| set.is_set(c)).collect(),
+        Err(_) => vec![0],
+    }
+}
+
+/// The CPUs online on this machine, whatever this process may use.
+pub fn online_cpus() -> usize {
+    // SAFETY: sysconf(3) reads a constant of the system (rustix has no sysconf).
+    unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) }.max(1) as usize
 }
 
 /// For a child between fork and exec: exactly the class asked for (SCHED_FIFO at
@@ -95,8 +118,7 @@ pub fn class_of(pid: u32) -> String {
             libc::sched_getparam(pid, &mut param) == 0,
         )
     };
-    // SAFETY: getpriority(2) on a process id.
-    let nice = unsafe { libc::getpriority(libc::PRIO_PROCESS, pid as libc::id_t) };
+    let nice = getpriority_process(Pid::from_raw(pid)).unwrap_or(0);
     match policy {
         libc::SCHED_FIFO if ok => format!("FIFO {}", param.sched_priority),
         libc::SCHED_OTHER => format!("OTHER nice {nice}"),
@@ -108,14 +130,12 @@ pub fn class_of(pid: u32) -> String {
 /// Sets the whole process's niceness (raising it needs no privilege, lowering does); false when
 /// refused.
 pub fn set_process_nice(nice: i32) -> bool {
-    // SAFETY: setpriority(2) on this process only.
-    unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, nice) == 0 }
+    setpriority_process(None, nice).is_ok()
 }
 
 /// The calling process's niceness.
 pub fn process_nice() -> i32 {
-    // SAFETY: getpriority(2) on this process only.
-    unsafe { libc::getpriority(libc::PRIO_PROCESS, 0) }
+    getpriority_process(None).unwrap_or(0)
 }
 
 #[cfg(test)]

@@ -117,8 +117,7 @@ fn cpu_seconds() -> f64 {
         .iter()
         .filter_map(|&i| f.get(i)?.parse::<f64>().ok())
         .sum();
-    // SAFETY: sysconf(3) has no preconditions.
-    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    let hz = rustix::param::clock_ticks_per_second().max(1) as f64;
     ticks / hz
 }
 
@@ -128,8 +127,7 @@ fn rss_kb() -> u64 {
         .ok()
         .and_then(|s| s.split_whitespace().nth(1)?.parse::<u64>().ok())
         .unwrap_or(0);
-    // SAFETY: sysconf(3) has no preconditions.
-    pages * unsafe { libc::sysconf(libc::_SC_PAGESIZE) }.max(0) as u64 / 1024
+    pages * rustix::param::page_size() as u64 / 1024
 }
 
 #[cfg(test)]

@@ -40,7 +40,9 @@ impl Live {
     pub fn stop_all(&self) {
         for c in self.lock().iter().flatten() {
             // The slot is cleared before the child is reaped (see `up`): the pid is still ours.
-            unsafe { libc::kill(c.pid as i32, libc::SIGTERM) };
+            if let Some(pid) = rustix::process::Pid::from_raw(c.pid as i32) {
+                let _ = rustix::process::kill_process(pid, rustix::process::Signal::TERM);
+            }
         }
     }
 
@@ -130,16 +132,14 @@ pub fn up(run: &Run, live: &Live, slot: usize) -> anyhow::Result<()> {
 }
 
 fn wait_unreaped(pid: u32) -> anyhow::Result<()> {
+    use rustix::process::{Pid, WaitId, WaitIdOptions, waitid};
+    let pid = Pid::from_raw(pid as i32).context("waiting for mta up: pid 0")?;
+    let flags = WaitIdOptions::EXITED | WaitIdOptions::NOWAIT;
     loop {
-        let mut info: libc::siginfo_t = unsafe { std::mem::zeroed() };
-        let flags = libc::WEXITED | libc::WNOWAIT;
-        let r = unsafe { libc::waitid(libc::P_PID, pid as libc::id_t, &mut info, flags) };
-        if r == 0 {
-            return Ok(());
-        }
-        let e = std::io::Error::last_os_error();
-        if e.kind() != std::io::ErrorKind::Interrupted {
-            return Err(e).context("waiting for mta up");
+        match waitid(WaitId::Pid(pid), flags) {
+            Ok(_) => return Ok(()),
+            Err(rustix::io::Errno::INTR) => continue,
+            Err(e) => return Err(std::io::Error::from(e)).context("waiting for mta up"),
         }
     }
 }

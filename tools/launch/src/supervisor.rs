@@ -318,8 +318,8 @@ impl Supervisor {
                 }
                 continue;
             };
-            // SAFETY: kill(2) on our own child's pid.
-            unsafe { libc::kill(p.id() as i32, libc::SIGTERM) };
+            let pid = rustix::process::Pid::from_child(p);
+            let _ = rustix::process::kill_process(pid, rustix::process::Signal::TERM);
             let deadline = Instant::now() + timeout;
             let status = loop {
                 if let Ok(Some(s)) = p.try_wait() {

@@ -69,8 +69,7 @@ pub struct SoakArgs {
 
 pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     // The load first: it is the machine everything below is measured on.
-    // SAFETY: sysconf(3) reads a constant of the system.
-    let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) }.max(1) as usize;
+    let online = mtanet_ipc::sched::online_cpus();
     let hog = CpuHog::start(if args.cpu_hog { online } else { 0 })?;
     if let Some(cpus) = &args.cpus {
         load::confine(cpus)?;

@@ -5,6 +5,7 @@
 use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, bail};
+use mtanet_ipc::sched;
 
 /// One busy process per core at normal priority (`yes > /dev/null`), until dropped.
 pub struct CpuHog(Vec<Child>);
@@ -40,8 +41,7 @@ impl Drop for CpuHog {
 /// Confines this process, and every process it starts from now on, to `cpus` ("0", "0-1",
 /// "0,2").
 pub fn confine(cpus: &str) -> anyhow::Result<()> {
-    // SAFETY: an all-zero cpu_set_t is the empty set.
-    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    let mut set = Vec::new();
     for part in cpus.split(',') {
         let (a, b) = match part.split_once('-') {
             Some((a, b)) => (a, b),
@@ -53,33 +53,17 @@ pub fn confine(cpus: &str) -> anyhow::Result<()> {
                 .with_context(|| format!("--cpus {cpus:?}: {v:?} is not a CPU number"))
         };
         let (a, b) = (parse(a)?, parse(b)?);
-        if a > b || b >= libc::CPU_SETSIZE as usize {
+        if a > b || b >= sched::MAX_CPUS {
             bail!("--cpus {cpus:?}: {part:?} is not a range of CPUs");
         }
-        // SAFETY: b < CPU_SETSIZE, checked above.
-        (a..=b).for_each(|c| unsafe { libc::CPU_SET(c, &mut set) });
+        set.extend(a..=b);
     }
-    // SAFETY: sched_setaffinity(2) on this process with a set we own.
-    if unsafe { libc::sched_setaffinity(0, std::mem::size_of_val(&set), &set) } != 0 {
-        bail!(
-            "--cpus {cpus:?}: sched_setaffinity failed: {}",
-            std::io::Error::last_os_error()
-        );
-    }
-    Ok(())
+    sched::set_affinity(&set).with_context(|| format!("--cpus {cpus:?}: sched_setaffinity failed"))
 }
 
 /// The CPUs this process may run on (after [`confine`]).
 pub fn allowed_cpus() -> Vec<usize> {
-    // SAFETY: an all-zero cpu_set_t is the empty set; sched_getaffinity(2) fills it.
-    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
-    if unsafe { libc::sched_getaffinity(0, std::mem::size_of_val(&set), &mut set) } != 0 {
-        return vec![0];
-    }
-    // SAFETY: CPU_ISSET reads the set within CPU_SETSIZE.
-    (0..libc::CPU_SETSIZE as usize)
-        .filter(|&c| unsafe { libc::CPU_ISSET(c, &set) })
-        .collect()
+    sched::allowed_cpus()
 }
 
 #[cfg(test)]

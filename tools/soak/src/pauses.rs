@@ -91,19 +91,11 @@ fn watch(cpu: usize, stop: &AtomicBool, pauses: &Mutex<Vec<Pause>>) -> bool {
     let mut due = stamp::monotonic_ns();
     while !stop.load(Ordering::Relaxed) {
         due += PERIOD_NS;
-        let ts = libc::timespec {
-            tv_sec: (due / 1_000_000_000) as libc::time_t,
-            tv_nsec: (due % 1_000_000_000) as libc::c_long,
+        let ts = rustix::time::Timespec {
+            tv_sec: (due / 1_000_000_000) as i64,
+            tv_nsec: (due % 1_000_000_000) as _,
         };
-        // SAFETY: clock_nanosleep(2) to an absolute time on CLOCK_MONOTONIC.
-        unsafe {
-            libc::clock_nanosleep(
-                libc::CLOCK_MONOTONIC,
-                libc::TIMER_ABSTIME,
-                &ts,
-                std::ptr::null_mut(),
-            )
-        };
+        let _ = rustix::thread::clock_nanosleep_absolute(rustix::time::ClockId::Monotonic, &ts);
         let now = stamp::monotonic_ns();
         if now > due + PAUSE_NS {
             let mut kept = pauses.lock().expect("not poisoned");
