@@ -37,6 +37,12 @@ pub fn quantile(sorted: &[f64], q: f64) -> Option<f64> {
     Some(sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo]))
 }
 
-/// Simulated seconds between two observations (the paper's 0.02 s): steps to seconds in
-/// reports. `mtanet_ipc::CONTROL_PERIOD_S` is checked equal to it at compile time.
+/// Simulated seconds between two observations (the paper's 0.02 s). Defined here, the one crate
+/// the world, the messages and the agent all build on; they re-export it.
 pub const CONTROL_PERIOD_S: f64 = 0.02;
+/// Rows of the camera image (the paper's 8x12 grayscale vision sensor), row 0 farthest ahead.
+pub const IMAGE_HEIGHT: usize = 8;
+/// Columns of the camera image, column 0 on the car's left.
+pub const IMAGE_WIDTH: usize = 12;
+/// Pixels of one image, row-major.
+pub const IMAGE_PIXELS: usize = IMAGE_HEIGHT * IMAGE_WIDTH;

@@ -26,16 +26,9 @@ pub use messages::*;
 /// Who decided a command: defined with the summaries that count it, carried by [`Command`].
 pub use mtanet_summaries::CommandSource;
 
-/// Rows of the camera image (the paper's 8x12 grayscale vision sensor).
-pub const IMAGE_HEIGHT: usize = 8;
-/// Columns of the camera image.
-pub const IMAGE_WIDTH: usize = 12;
-/// Pixels of one image, row-major, row 0 = farthest ahead, column 0 = the car's left.
-pub const IMAGE_PIXELS: usize = IMAGE_HEIGHT * IMAGE_WIDTH;
+/// The camera image (8x12, row-major) and the period of the observations: one definition.
+pub use mtanet_summaries::{CONTROL_PERIOD_S, IMAGE_HEIGHT, IMAGE_PIXELS, IMAGE_WIDTH};
 /// The action: left and right wheel angular velocity in rad/s.
 pub const ACTION_DIM: usize = 2;
-/// Simulated seconds between two observations (the paper's 0.02 s).
-pub const CONTROL_PERIOD_S: f64 = 0.02;
-const _: () = assert!(CONTROL_PERIOD_S == mtanet_summaries::CONTROL_PERIOD_S);
 /// Steps in one replay chunk (one training sequence, the paper's T = 20).
 pub const REPLAY_STEPS: usize = 20;

@@ -21,8 +21,8 @@ pub struct FrameShape {
 impl FrameShape {
     /// The car's 8x12 middle camera.
     pub const CAR: FrameShape = FrameShape {
-        height: 8,
-        width: 12,
+        height: mtanet_summaries::IMAGE_HEIGHT,
+        width: mtanet_summaries::IMAGE_WIDTH,
     };
 
     pub fn pixels(self) -> usize {

@@ -32,14 +32,8 @@ pub use teacher::{Teacher, TeacherConfig};
 pub use truth::GroundTruth;
 pub use world::{World, WorldState};
 
-/// Image rows (height).
-pub const IMAGE_HEIGHT: usize = 8;
-/// Image columns (width).
-pub const IMAGE_WIDTH: usize = 12;
-/// Pixels per image, row-major.
-pub const IMAGE_PIXELS: usize = IMAGE_HEIGHT * IMAGE_WIDTH;
-/// Control (and recording) period of the paper's data set, seconds.
-pub const CONTROL_PERIOD_S: f64 = 0.02;
+/// The camera image and the control period, as the messages carry them: one definition.
+pub use mtanet_summaries::{CONTROL_PERIOD_S, IMAGE_HEIGHT, IMAGE_PIXELS, IMAGE_WIDTH};
 /// Physics time step, seconds (4 physics steps per control period).
 pub const PHYSICS_TIMESTEP_S: f64 = 0.005;
 
