@@ -243,8 +243,20 @@ impl Trainer {
         path: &std::path::Path,
         loss: Option<f64>,
     ) -> Result<(), CheckpointError> {
+        self.save_checkpoint_bytes(path, &self.checkpoint_bytes(loss)?, loss)
+    }
+
+    /// [`Trainer::save_checkpoint`] with the checkpoint already serialised by
+    /// [`Trainer::checkpoint_bytes`] with the same `loss` (a publication writes the bytes it
+    /// sends).
+    pub fn save_checkpoint_bytes(
+        &self,
+        path: &std::path::Path,
+        bytes: &[u8],
+        loss: Option<f64>,
+    ) -> Result<(), CheckpointError> {
+        mtanet_summaries::files::write_bytes(path, bytes)?;
         let meta = Meta::new(self.step, loss).with_probe(self.probe);
-        checkpoint::save(path, &self.vs, &self.cfg, &meta)?;
         let moments = self.opt.to_bytes(&self.cfg, &meta)?;
         Ok(mtanet_summaries::files::write_bytes(
             &optimizer_path(path),

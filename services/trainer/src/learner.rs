@@ -260,7 +260,7 @@ impl Learner {
             ..Default::default()
         };
         // A full disk must not end the learning in memory: say so and keep training.
-        if let Err(e) = self.save() {
+        if let Err(e) = self.save(Some(&bytes)) {
             tracing::error!(path = ?self.checkpoint, "could not save the checkpoint: {e}");
         }
         Ok(Publication { header, bytes })
@@ -272,7 +272,7 @@ impl Learner {
         if self.checkpoint.is_none() || self.trainer.step() == self.saved_step {
             return Ok(());
         }
-        self.save().context("saving the checkpoint at stop")?;
+        self.save(None).context("saving the checkpoint at stop")?;
         tracing::info!(path = ?self.checkpoint, step = self.saved_step, "checkpoint saved at stop");
         Ok(())
     }
@@ -280,7 +280,9 @@ impl Learner {
     /// Writes the checkpoint (and Adam's moments) when `checkpoint_dir` is set, keeping the one
     /// before as `previous.*`: the old latest is renamed (atomic) before the new one is written
     /// (temp file + rename), so a failed write (disk full) leaves the last good one intact.
-    fn save(&mut self) -> Result<(), CheckpointError> {
+    /// `bytes`: the serialisation a publication already made (one per publication), else a
+    /// fresh one.
+    fn save(&mut self, bytes: Option<&[u8]>) -> Result<(), CheckpointError> {
         if let Some(path) = &self.checkpoint {
             let previous = path.with_file_name(PREVIOUS);
             if path.exists() {
@@ -290,7 +292,12 @@ impl Learner {
                     rename(&opt, &optimizer_path(&previous))?;
                 }
             }
-            self.trainer.save_checkpoint(path, self.last_loss)?;
+            match bytes {
+                Some(b) => self
+                    .trainer
+                    .save_checkpoint_bytes(path, b, self.last_loss)?,
+                None => self.trainer.save_checkpoint(path, self.last_loss)?,
+            }
             self.saved_step = self.trainer.step();
         }
         Ok(())
@@ -330,12 +337,23 @@ mod tests {
 
     fn saved_at(l: &mut Learner, step: u64) {
         l.trainer.set_step(step);
-        l.save().unwrap();
+        l.save(None).unwrap();
     }
 
     fn truncate(p: &Path) {
         let b = std::fs::read(p).unwrap();
         std::fs::write(p, &b[..b.len() / 2]).unwrap();
+    }
+
+    #[test]
+    fn a_publication_keeps_on_disk_the_bytes_it_sends() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut l = Learner::new(&cfg(dir.path())).unwrap();
+        l.trainer.set_step(7);
+        let p = l.publication().unwrap();
+        assert_eq!(std::fs::read(dir.path().join(LATEST)).unwrap(), p.bytes);
+        // The same as serialising afresh: one serialisation serves both.
+        assert_eq!(p.bytes, l.trainer.checkpoint_bytes(l.last_loss).unwrap());
     }
 
     #[test]
@@ -399,7 +417,7 @@ mod tests {
         std::fs::create_dir(&blocker).unwrap();
         l.trainer.set_step(20);
         assert!(
-            l.save().is_err(),
+            l.save(None).is_err(),
             "the write must fail for the test to mean anything"
         );
         assert_eq!(
