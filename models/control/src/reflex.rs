@@ -11,7 +11,8 @@ use crate::drive::{Drive, Wheels};
 #[serde(default, deny_unknown_fields)]
 pub struct ReflexConfig {
     /// Turn added (rad/s, toward the line) when a side sensor sees the line with the middle
-    /// one...
+    /// one (2.0: closer than 1.5 on 5 of 6 unseen tracks; docs/experiments.md, "The reflex's
+    /// gentle turn")...
     pub gentle: f32,
     /// ...and when a side sensor sees it alone (0, 0 and 0: no reflex, the plan alone steers).
     /// The rule's own turn: weaker, the car slips off the line at the exit of tight bends
