@@ -76,7 +76,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
     }
     let machine = mtanet_summaries::soak::Machine::here(hog.len());
     eprintln!("[soak] {machine}");
-    let watch = PauseWatch::start(&load::allowed_cpus())?;
+    let watch = PauseWatch::start(&mtanet_ipc::sched::allowed_cpus())?;
     let out = args.out.clone();
     let mode = if args.lockstep {
         "lockstep"

@@ -61,11 +61,6 @@ pub fn confine(cpus: &str) -> anyhow::Result<()> {
     sched::set_affinity(&set).with_context(|| format!("--cpus {cpus:?}: sched_setaffinity failed"))
 }
 
-/// The CPUs this process may run on (after [`confine`]).
-pub fn allowed_cpus() -> Vec<usize> {
-    sched::allowed_cpus()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
