@@ -9,14 +9,7 @@ use std::time::{Duration, Instant};
 use mtanet_ipc::node::NodeCensus;
 use mtanet_launch::stack::{bin_dir, nodes};
 
-pub use rustix::process::Signal;
-
-/// Sends `sig` to process `pid` (a child of the test; a pid that is gone is no error).
-pub fn signal(pid: u32, sig: Signal) {
-    if let Some(pid) = rustix::process::Pid::from_raw(pid as i32) {
-        let _ = rustix::process::kill_process(pid, sig);
-    }
-}
+pub use mtanet_ipc::child::{Signal, signal};
 
 /// A path as a command-line argument (the tests' temporary paths are UTF-8).
 pub fn arg(p: &Path) -> &str {
@@ -102,16 +95,7 @@ impl Proc {
 
     /// Waits for exit up to `timeout`; `None` if it is still running.
     pub fn try_wait_for(&mut self, timeout: Duration) -> Option<ExitStatus> {
-        let deadline = Instant::now() + timeout;
-        loop {
-            if let Some(status) = self.child.try_wait().ok().flatten() {
-                return Some(status);
-            }
-            if Instant::now() > deadline {
-                return None;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        mtanet_ipc::child::wait_for(&mut self.child, timeout)
     }
 
     pub fn is_running(&mut self) -> bool {

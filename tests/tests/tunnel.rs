@@ -34,16 +34,7 @@ struct Tunnel(Child, PathBuf);
 
 impl Drop for Tunnel {
     fn drop(&mut self) {
-        signal(self.0.id(), Signal::INT);
-        let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(5) {
-            if self.0.try_wait().ok().flatten().is_some() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        let _ = mtanet_ipc::child::stop_with(&mut self.0, Signal::INT, Duration::from_secs(5));
     }
 }
 

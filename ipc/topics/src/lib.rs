@@ -4,6 +4,7 @@
 //! Messages are plain `#[repr(C)]` data with an explicit iceoryx2 `type_name`, so two separately
 //! built binaries agree on them; sizes are pinned by tests in `messages`.
 
+pub mod child;
 pub mod cli;
 pub mod config;
 pub mod incident;

@@ -43,14 +43,37 @@ pub(super) fn check(
         });
     }
     let n = points.len();
-    let seg_lines = |i: usize| (lines[i], lines[(i + 1) % n]);
-    let seg = |i: usize| (points[i], points[(i + 1) % n]);
     let mut cum = vec![0.0; n + 1];
     for i in 0..n {
         cum[i + 1] = cum[i] + dist(points[i], points[(i + 1) % n]);
     }
-    let length = cum[n];
+    check_crossings_and_clearance(path, &points, &lines, &cum)?;
 
+    if let Some((point, radius)) = tightest_bend(&points, &cum)
+        && radius < MIN_BEND_RADIUS_M
+    {
+        return Err(TrackError::TooTight {
+            path: path_buf(),
+            line: lines[point],
+            point,
+            radius_m: radius,
+            min_m: MIN_BEND_RADIUS_M,
+        });
+    }
+    Ok((points, lines))
+}
+
+/// No two segments cross, and no two parts of the line far apart along the track come close.
+fn check_crossings_and_clearance(
+    path: &Path,
+    points: &[[f64; 2]],
+    lines: &[usize],
+    cum: &[f64],
+) -> Result<(), TrackError> {
+    let n = points.len();
+    let length = cum[n];
+    let seg_lines = |i: usize| (lines[i], lines[(i + 1) % n]);
+    let seg = |i: usize| (points[i], points[(i + 1) % n]);
     for i in 0..n {
         for j in i + 1..n {
             let adjacent = j == i + 1 || (i == 0 && j == n - 1);
@@ -58,7 +81,7 @@ pub(super) fn check(
             let (b0, b1) = seg(j);
             if !adjacent && segments_intersect(a0, a1, b0, b1) {
                 return Err(TrackError::SelfCrossing {
-                    path: path_buf(),
+                    path: path.to_path_buf(),
                     a: i,
                     a_lines: seg_lines(i),
                     b: j,
@@ -74,7 +97,7 @@ pub(super) fn check(
             let d = segment_distance(a0, a1, b0, b1);
             if d < MIN_CLEARANCE_M {
                 return Err(TrackError::TooClose {
-                    path: path_buf(),
+                    path: path.to_path_buf(),
                     a: i,
                     a_lines: seg_lines(i),
                     b: j,
@@ -85,19 +108,7 @@ pub(super) fn check(
             }
         }
     }
-
-    if let Some((point, radius)) = tightest_bend(&points, &cum)
-        && radius < MIN_BEND_RADIUS_M
-    {
-        return Err(TrackError::TooTight {
-            path: path_buf(),
-            line: lines[point],
-            point,
-            radius_m: radius,
-            min_m: MIN_BEND_RADIUS_M,
-        });
-    }
-    Ok((points, lines))
+    Ok(())
 }
 
 /// Signed turn (radians, left positive) at vertex `i`.

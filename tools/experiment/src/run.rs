@@ -40,9 +40,7 @@ impl Live {
     pub fn stop_all(&self) {
         for c in self.lock().iter().flatten() {
             // The slot is cleared before the child is reaped (see `up`): the pid is still ours.
-            if let Some(pid) = rustix::process::Pid::from_raw(c.pid as i32) {
-                let _ = rustix::process::kill_process(pid, rustix::process::Signal::TERM);
-            }
+            mtanet_ipc::child::signal(c.pid, mtanet_ipc::child::Signal::TERM);
         }
     }
 

@@ -176,6 +176,30 @@ impl Supervisor {
             .with_context(|| format!("no process named {name:?} in the stack"))
     }
 
+    /// Adds the plan's processes and starts them in its order, each ready (READY=1) before the
+    /// next starts: the simulator creates the services the others open. If one does not get
+    /// ready, those started are stopped and its error returned. Each name with its pid.
+    pub fn start_plan(
+        &mut self,
+        launches: Vec<crate::plan::Launch>,
+        ready: Duration,
+    ) -> anyhow::Result<Vec<(String, u32)>> {
+        let names: Vec<String> = launches.iter().map(|l| l.spec.name.clone()).collect();
+        for l in launches {
+            self.add(&l.spec, l.args)?;
+        }
+        let mut started = Vec::new();
+        for name in names {
+            let pid = self.start(&name)?;
+            if let Err(e) = self.await_ready(&name, ready) {
+                self.stop_all(Duration::from_secs(20));
+                return Err(e);
+            }
+            started.push((name, pid));
+        }
+        Ok(started)
+    }
+
     /// Starts (or restarts) process `name` now.
     pub fn start(&mut self, name: &str) -> anyhow::Result<u32> {
         let i = self.index(name)?;
@@ -318,20 +342,7 @@ impl Supervisor {
                 }
                 continue;
             };
-            let pid = rustix::process::Pid::from_child(p);
-            let _ = rustix::process::kill_process(pid, rustix::process::Signal::TERM);
-            let deadline = Instant::now() + timeout;
-            let status = loop {
-                if let Ok(Some(s)) = p.try_wait() {
-                    break Some(s);
-                }
-                if Instant::now() > deadline {
-                    let _ = p.kill();
-                    let _ = p.wait();
-                    break None;
-                }
-                std::thread::sleep(Duration::from_millis(10));
-            };
+            let status = mtanet_ipc::child::stop(p, timeout);
             c.process = None;
             if let Some(l) = c.logger.take() {
                 let _ = l.join();

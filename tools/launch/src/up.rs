@@ -238,18 +238,9 @@ fn start_in_order(
     stack: &StackConfig,
     run: &crate::plan::Run,
 ) -> anyhow::Result<()> {
-    let mut order = Vec::new();
-    for launch in crate::plan::plan(stack, run) {
-        sup.add(&launch.spec, launch.args)?;
-        order.push(launch.spec.name);
-    }
-    for name in &order {
-        let pid = sup.start(name)?;
+    let started = sup.start_plan(crate::plan::plan(stack, run), Duration::from_secs(60))?;
+    for (name, pid) in started {
         eprintln!("[up] started {name} (pid {pid})");
-        if let Err(e) = sup.await_ready(name, Duration::from_secs(60)) {
-            sup.stop_all(Duration::from_secs(20));
-            return Err(e);
-        }
     }
     Ok(())
 }

@@ -223,15 +223,14 @@ impl Prepared {
             max_steps: Some(steps),
             ..Default::default()
         };
-        for launch in mtanet_launch::plan(&self.stack, &run) {
-            sup.add(&launch.spec, launch.args)?;
-        }
-        let mut classes = BTreeMap::new();
-        for spec in &self.stack.process {
-            let pid = sup.start(&spec.name)?;
-            sup.await_ready(&spec.name, Duration::from_secs(60))?;
-            classes.insert(spec.name.clone(), scheduling(pid));
-        }
+        let started = sup.start_plan(
+            mtanet_launch::plan(&self.stack, &run),
+            Duration::from_secs(60),
+        )?;
+        let classes = started
+            .into_iter()
+            .map(|(name, pid)| (name, scheduling(pid)))
+            .collect();
         let (first, last) = self.watch(sup, args, steps)?;
         Ok(Ran {
             classes,

@@ -155,9 +155,7 @@ struct Kill(std::process::Child);
 
 impl Drop for Kill {
     fn drop(&mut self) {
-        // Our own child, not yet reaped: the pid is still its.
-        let pid = rustix::process::Pid::from_child(&self.0);
-        let _ = rustix::process::kill_process(pid, rustix::process::Signal::TERM);
+        mtanet_ipc::child::terminate(&self.0);
         let _ = self.0.wait();
     }
 }

@@ -70,25 +70,8 @@ pub fn figure_strip(
             steps,
         });
     }
-    let _g = tch::no_grad_guard();
     let layers = model.layers.len();
-    let mut preds = Vec::new();
-    let mut gu0: Vec<Vec<Tensor>> = (0..layers).map(|_| Vec::new()).collect(); // per layer, [C, H_l, W_l] per t
-    let mut state = model.zero_state(1);
-    let w = model.inference_weights();
-    for t in 0..steps {
-        let (next, out) = model.f_step_with(
-            &w,
-            &state,
-            &images.get(t).unsqueeze(0),
-            &actions.get(t).unsqueeze(0),
-        )?;
-        preds.push(out.prediction.view([is[1], is[2]]));
-        for (l, ls) in next.layers.iter().enumerate() {
-            gu0[l].push(ls.h.get(0).get(0));
-        }
-        state = next;
-    }
+    let (preds, gu0) = run_sequence(model, images, actions)?;
     let mut rows: Vec<Vec<Tensor>> = vec![
         used.iter()
             .map(|&f| images.get(f as i64).clamp(0.0, 1.0))
@@ -97,18 +80,9 @@ pub fn figure_strip(
     ];
     let mut channels = Vec::new();
     for seq in &gu0 {
-        let all = Tensor::stack(seq, 0); // [T, C, H, W]
-        let c = all
-            .var_dim([0, 2, 3].as_slice(), false, false)
-            .argmax(0, false)
-            .int64_value(&[]);
+        let (row, c) = busiest_channel_row(seq, &used);
         channels.push(c);
-        // One min-max range per row so that the columns are comparable.
-        let picked: Vec<Tensor> = used.iter().map(|&f| all.get(f as i64).get(c)).collect();
-        let lo = Tensor::stack(&picked, 0).min().double_value(&[]);
-        let hi = Tensor::stack(&picked, 0).max().double_value(&[]);
-        let span = (hi - lo).max(1e-9);
-        rows.push(picked.iter().map(|p| (p - lo) / span).collect());
+        rows.push(row);
     }
     let mut row_labels = vec!["input".to_string(), "predicted".to_string()];
     row_labels.extend((0..layers).map(|l| format!("L{l} GU0")));
@@ -130,6 +104,50 @@ pub fn figure_strip(
         rows: labels,
         channels,
     })
+}
+
+/// The model run over the whole sequence: its prediction at each step ([H, W]) and, per layer,
+/// the first generative unit's hidden state at each step ([C, H_l, W_l]).
+fn run_sequence(
+    model: &MtaPredNet,
+    images: &Tensor,
+    actions: &Tensor,
+) -> Result<(Vec<Tensor>, Vec<Vec<Tensor>>), FigureError> {
+    let _g = tch::no_grad_guard();
+    let is = images.size();
+    let mut preds = Vec::new();
+    let mut gu0: Vec<Vec<Tensor>> = (0..model.layers.len()).map(|_| Vec::new()).collect();
+    let mut state = model.zero_state(1);
+    let w = model.inference_weights();
+    for t in 0..is[0] {
+        let (next, out) = model.f_step_with(
+            &w,
+            &state,
+            &images.get(t).unsqueeze(0),
+            &actions.get(t).unsqueeze(0),
+        )?;
+        preds.push(out.prediction.view([is[1], is[2]]));
+        for (l, ls) in next.layers.iter().enumerate() {
+            gu0[l].push(ls.h.get(0).get(0));
+        }
+        state = next;
+    }
+    Ok((preds, gu0))
+}
+
+/// One layer's row of the strip: the channel that varies most over the sequence, at the frames
+/// `used`, scaled to [0, 1] by one range for the whole row so that its columns compare.
+fn busiest_channel_row(seq: &[Tensor], used: &[usize]) -> (Vec<Tensor>, i64) {
+    let all = Tensor::stack(seq, 0); // [T, C, H, W]
+    let c = all
+        .var_dim([0, 2, 3].as_slice(), false, false)
+        .argmax(0, false)
+        .int64_value(&[]);
+    let picked: Vec<Tensor> = used.iter().map(|&f| all.get(f as i64).get(c)).collect();
+    let lo = Tensor::stack(&picked, 0).min().double_value(&[]);
+    let hi = Tensor::stack(&picked, 0).max().double_value(&[]);
+    let span = (hi - lo).max(1e-9);
+    (picked.iter().map(|p| (p - lo) / span).collect(), c)
 }
 
 /// Cells in a grid with a label left of each row and above each column.
