@@ -19,6 +19,7 @@ use crate::planner::{Outcome, PlanStats};
 use crate::preference::{FrameShape, PreferenceLearner};
 use crate::reactive::{ExplorationConfig, Explorer, Reactive, ReactiveConfig};
 use crate::recovery::Recovery;
+use crate::reflex::Reflex;
 use crate::worker::PlanService;
 
 mod handover;
@@ -37,6 +38,7 @@ pub struct Agent {
     cfg: AgentConfig,
     control_period_s: f32,
     reactive: Reactive,
+    reflex: Reflex,
     recovery: Recovery,
     explorer: Explorer,
     preference: PreferenceLearner,
@@ -98,6 +100,7 @@ impl Agent {
             cfg: cfg.clone(),
             control_period_s,
             reactive: Reactive::new(reactive),
+            reflex: Reflex::new(&cfg.reflex, control_period_s),
             recovery: Recovery::new(cfg.retrace_s, reactive.cruise, control_period_s),
             explorer: Explorer::new(exploration, control_period_s),
             preference: PreferenceLearner::new(
@@ -255,10 +258,13 @@ impl Agent {
         model: &M,
         plan: Option<(Outcome, Duration)>,
     ) -> Decision {
+        if self.mode != Mode::ActiveInference {
+            // The ramp integrates only what active inference drives.
+            self.reflex.reset();
+        }
         match self.mode {
             Mode::ActiveInference => {
                 let w = self
-                    .cfg
                     .reflex
                     .apply(self.committed, t.line, self.reactive.last_side());
                 let mut d = self.decided(w, Driver::ActiveInference, plan);
@@ -389,6 +395,7 @@ impl Agent {
         self.deferred = None;
         model.reset();
         self.reactive.reset();
+        self.reflex.reset();
         self.recovery.reset();
         self.applied.clear();
         self.ticks_in_segment = 0;
