@@ -138,32 +138,30 @@ fn log_tail(dir: &Path, n: usize) -> String {
     lines[lines.len().saturating_sub(n)..].join("\n")
 }
 
-#[test]
-fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
-    let dir = tempfile::tempdir().unwrap();
-    let ns = unique_namespace("flt");
-    let ck = dir.path().join("ck");
-    std::fs::create_dir_all(&ck).unwrap();
+/// The stack under the supervisor in real time, from the committed checkpoint in `ck`, each
+/// process alive before the next starts.
+fn start_stack(dir: &Path, ns: &str, ck: &Path) -> Supervisor {
+    std::fs::create_dir_all(ck).unwrap();
     std::fs::copy(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors"),
         ck.join("latest.safetensors"),
     )
     .unwrap();
-    let config = dir.path().join("stack.toml");
+    let config = dir.join("stack.toml");
     std::fs::write(
         &config,
         format!(
             "[simulator]\nmode = \"realtime\"\n[trainer]\ncheckpoint_dir = {:?}\npublish_every_updates = 20\nmin_sequences = 8\nprobe_every_updates = 0\n",
-            arg(&ck)
+            arg(ck)
         ),
     )
     .unwrap();
     let stack = StackConfig::default();
-    let mut sup = Supervisor::new(dir.path()).unwrap();
+    let mut sup = Supervisor::new(dir).unwrap();
     let run = Run {
         config: Some(config.clone()),
-        namespace: Some(ns.clone()),
-        summaries: Some(dir.path().to_owned()),
+        namespace: Some(ns.to_owned()),
+        summaries: Some(dir.to_owned()),
         ..Default::default()
     };
     for launch in plan(&stack, &run) {
@@ -172,7 +170,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     for (k, p) in stack.process.iter().enumerate() {
         sup.start(&p.name).unwrap();
         assert!(
-            wait_for_alive(&ns, k + 1, Duration::from_secs(60))
+            wait_for_alive(ns, k + 1, Duration::from_secs(60))
                 .alive
                 .len()
                 > k,
@@ -180,25 +178,25 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
             p.name
         );
     }
-    let node = create_node(
-        &IpcConfig {
-            namespace: ns.clone(),
-        },
-        "fault-watch",
-    )
-    .unwrap();
-    let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP).unwrap();
-    assert!(
-        stepping(&cmds, &mut sup, Duration::from_secs(30)).is_some(),
-        "the stack never stepped"
-    );
+    sup
+}
 
+/// Each process killed with SIGKILL in turn is restarted and the stack steps again within 3 s,
+/// with no stale node left; the trainer resumes from its own last save and the predictor gets
+/// the newest weights at once.
+fn kill_each_in_turn(
+    dir: &Path,
+    ns: &str,
+    ck: &Path,
+    cmds: &Receiver<Command>,
+    sup: &mut Supervisor,
+) {
     let mut times = Vec::new();
     let mut saved_before_kill = 0;
     for victim in ["predictor", "trainer", "simulator"] {
         if victim == "trainer" {
             // Kill it once it has learnt and saved something of its own (publish = save).
-            saved_before_kill = next_save(&ck, START_STEP, &mut sup);
+            saved_before_kill = next_save(ck, START_STEP, sup);
             assert!(
                 saved_before_kill > START_STEP,
                 "the trainer saved nothing of its own"
@@ -217,7 +215,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
             std::thread::sleep(Duration::from_millis(10));
         }
         assert!(restarted, "{victim} was not restarted");
-        let back = stepping(&cmds, &mut sup, Duration::from_secs(10));
+        let back = stepping(cmds, sup, Duration::from_secs(10));
         let since_kill = t0.elapsed();
         assert!(
             back.is_some(),
@@ -227,7 +225,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         assert!(
             since_kill < Duration::from_secs(3),
             "{victim}: {since_kill:?} from kill to 25 steps answered; stack.log ends:\n{}",
-            log_tail(dir.path(), 40)
+            log_tail(dir, 40)
         );
         times.push((victim, since_kill));
         // The stack steps without the trainer: wait for the replacement itself (its READY=1,
@@ -235,7 +233,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         if let Err(e) = sup.await_ready(victim, Duration::from_secs(10)) {
             panic!("{victim} came back but was not ready: {e:#}");
         }
-        let c = nodes(&ns);
+        let c = nodes(ns);
         assert!(
             c.dead.is_empty(),
             "stale nodes after {victim} was restarted: {c:?}"
@@ -245,23 +243,26 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
     assert_eq!(sup.restarts().values().sum::<u32>(), 3);
     // The restarted trainer resumed from its last save, not from the committed checkpoint: its
     // first save is past the one it was killed after (from the start it would be below it).
-    let resumed_save = next_save(&ck, saved_before_kill, &mut sup);
+    let resumed_save = next_save(ck, saved_before_kill, sup);
     assert!(
         resumed_save > saved_before_kill,
         "the restarted trainer saved step {resumed_save}, before its last save {saved_before_kill}"
     );
     // The restarted predictor got the newest weights at once: its model steps.
     let predictor = sup.pid("predictor").unwrap();
-    StatsWatch::open(&ns).wait_for("predictor", Duration::from_secs(60), |s| {
+    StatsWatch::open(ns).wait_for("predictor", Duration::from_secs(60), |s| {
         s.pid == predictor && s.model_over_copy_last.is_finite()
     });
+}
 
+/// `mta status` sees the restarted stack from its stats topic.
+fn status_sees_the_restarts(ns: &str, sup: &mut Supervisor) {
     // `mta status` sees the restarted stack from its stats topic: every process once restarted,
     // stepping at 50 Hz (each process's first message has no rate yet: ask again).
     let mut status = serde_json::Value::Null;
     for _ in 0..6 {
         let out = std::process::Command::new(bin("mta"))
-            .args(["status", "--json", "--listen-s", "3", "--namespace", &ns])
+            .args(["status", "--json", "--listen-s", "3", "--namespace", ns])
             .output()
             .unwrap();
         assert!(
@@ -309,6 +310,69 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
         Some(&serde_json::json!([])),
         "{status:#}"
     );
+}
+
+/// The summaries of the run: the 1 s freeze cost missed commands once the plan ran out, the
+/// predictor answered only the newest frame after it, the car was never put back, and only
+/// whole chunks reached the trainer.
+fn summaries_show_the_freeze(dir: &Path) {
+    let sim: SimulatorSummary = read_json(&dir.join("mta-simulator.json"));
+    println!("since the simulator's restart: {:?}", sim.control);
+    let (missed, followed) = (sim.missed_commands, sim.plan_followed);
+    assert!(
+        (30..=90).contains(&(missed + followed)),
+        "1 s frozen at 50 Hz (and 0.1 s before): about 55 steps without a command, got {missed} missed and {followed} following the plan"
+    );
+    // The plan carried ran out in the long pause: the miss policy took over.
+    assert!(
+        missed >= 10,
+        "{missed} missed, {followed} following the plan"
+    );
+    assert!(followed > 0, "no step followed a plan");
+    // Woken after 1 s, the predictor answers only the newest of the frames queued for it.
+    let pred: PredictorSummary = read_json(&dir.join("mta-predictor.json"));
+    assert!(pred.superseded >= 1, "{pred:?}");
+    assert_eq!(
+        pred.commands_sent + pred.superseded,
+        pred.observations,
+        "{pred:?}"
+    );
+    assert_eq!(
+        sim.resets,
+        0,
+        "the car was reset (control: {:?}); stack.log ends:\n{}",
+        sim.control,
+        log_tail(dir, 60)
+    );
+    let tr: TrainerSummary = read_json(&dir.join("mta-trainer.json"));
+    assert_eq!(
+        tr.steps_received,
+        20 * tr.chunks_received,
+        "only whole chunks reach the trainer: {tr:?}"
+    );
+}
+
+#[test]
+fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = unique_namespace("flt");
+    let ck = dir.path().join("ck");
+    let mut sup = start_stack(dir.path(), &ns, &ck);
+    let node = create_node(
+        &IpcConfig {
+            namespace: ns.clone(),
+        },
+        "fault-watch",
+    )
+    .unwrap();
+    let cmds = Receiver::<Command>::open(&node, names::COMMAND, TopicShape::STEP).unwrap();
+    assert!(
+        stepping(&cmds, &mut sup, Duration::from_secs(30)).is_some(),
+        "the stack never stepped"
+    );
+
+    kill_each_in_turn(dir.path(), &ns, &ck, &cmds, &mut sup);
+    status_sees_the_restarts(&ns, &mut sup);
 
     // Frozen for 1 s, with the car on the line: the simulator misses the deadlines, its
     // stand-in drives, the loop recovers. (Where the agent itself leaves the line, its own
@@ -336,40 +400,7 @@ fn killed_processes_are_restarted_and_a_frozen_predictor_is_survived() {
             "{name} did not stop cleanly: {ends:?}"
         );
     }
-    let sim: SimulatorSummary = read_json(&dir.path().join("mta-simulator.json"));
-    println!("since the simulator's restart: {:?}", sim.control);
-    let (missed, followed) = (sim.missed_commands, sim.plan_followed);
-    assert!(
-        (30..=90).contains(&(missed + followed)),
-        "1 s frozen at 50 Hz (and 0.1 s before): about 55 steps without a command, got {missed} missed and {followed} following the plan"
-    );
-    // The plan carried ran out in the long pause: the miss policy took over.
-    assert!(
-        missed >= 10,
-        "{missed} missed, {followed} following the plan"
-    );
-    assert!(followed > 0, "no step followed a plan");
-    // Woken after 1 s, the predictor answers only the newest of the frames queued for it.
-    let pred: PredictorSummary = read_json(&dir.path().join("mta-predictor.json"));
-    assert!(pred.superseded >= 1, "{pred:?}");
-    assert_eq!(
-        pred.commands_sent + pred.superseded,
-        pred.observations,
-        "{pred:?}"
-    );
-    assert_eq!(
-        sim.resets,
-        0,
-        "the car was reset (control: {:?}); stack.log ends:\n{}",
-        sim.control,
-        log_tail(dir.path(), 60)
-    );
-    let tr: TrainerSummary = read_json(&dir.path().join("mta-trainer.json"));
-    assert_eq!(
-        tr.steps_received,
-        20 * tr.chunks_received,
-        "only whole chunks reach the trainer: {tr:?}"
-    );
+    summaries_show_the_freeze(dir.path());
     let c = nodes(&ns);
     assert!(
         c.alive.is_empty() && c.dead.is_empty(),

@@ -16,8 +16,7 @@ use mtanet_ipc::{ReplayChunk, WeightsHeader, names, stamp};
 use mtanet_predictor::service::Summary as PredictorSummary;
 use mtanet_simulator::summary::Summary as SimulatorSummary;
 use mtanet_system_tests::{
-    Proc, Run, Signal, read_json, remove_namespace_files, run_in, signal, start, summary,
-    unique_namespace,
+    Proc, Run, Signal, read_json, remove_namespace_files, run_in, start, summary, unique_namespace,
 };
 use mtanet_trainer::service::Summary as TrainerSummary;
 
@@ -105,55 +104,13 @@ fn pct(mut v: Vec<f64>) -> String {
     )
 }
 
-#[test]
-fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnels() {
-    let dir = tempfile::tempdir().unwrap();
-    let (robot, trainer) = (unique_namespace("tnr"), unique_namespace("tnt"));
-    let port = free_port();
-    // The robot's tunnel listens, the trainer host's connects; each wakes on its own outgoing
-    // topic's events and on data from the peer (--reactive), and polls for discovery.
-    let a = tunnel(
-        &dir.path().join("robot"),
-        &robot,
-        &zenoh_config(Some(port), None),
-        names::REPLAY,
-    );
-    let b = tunnel(
-        &dir.path().join("trainer"),
-        &trainer,
-        &zenoh_config(None, Some(port)),
-        names::WEIGHTS,
-    );
-    let logs = || {
-        [&a.1, &b.1]
-            .iter()
-            .map(|p| std::fs::read_to_string(p).unwrap_or_default())
-            .collect::<Vec<_>>()
-            .join("\n---\n")
-    };
-
-    let robot_node = create_node(
-        &IpcConfig {
-            namespace: robot.clone(),
-        },
-        "robot",
-    )
-    .unwrap();
-    let trainer_node = create_node(
-        &IpcConfig {
-            namespace: trainer.clone(),
-        },
-        "trainer-host",
-    )
-    .unwrap();
-    let replay_out =
-        Sender::<ReplayChunk>::open(&robot_node, names::REPLAY, TopicShape::REPLAY).unwrap();
-    let weights_in = WeightsReceiver::open(&robot_node).unwrap();
-    let replay_in =
-        Receiver::<ReplayChunk>::open(&trainer_node, names::REPLAY, TopicShape::REPLAY).unwrap();
-    let weights_out = WeightsSender::open(&trainer_node).unwrap();
-
-    // Replay, robot -> trainer: send until the tunnels have found each other and a chunk arrives.
+/// Replay chunks, robot -> trainer: sent until the tunnels have found each other and one
+/// arrives, then 20 more, each checked intact; their latencies (ms).
+fn replay_latencies(
+    replay_out: &Sender<ReplayChunk>,
+    replay_in: &Receiver<ReplayChunk>,
+    logs: &dyn Fn() -> String,
+) -> Vec<f64> {
     let send_chunk = |seq: u64| {
         replay_out
             .send_with(|c| {
@@ -202,7 +159,16 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         replay_ms.push(ns as f64 * 1e-6);
     }
 
-    // Weights, trainer -> robot: the committed checkpoint (~1 MB) as the trainer sends it.
+    replay_ms
+}
+
+/// Weights, trainer -> robot: the committed checkpoint (~1 MB) as the trainer sends it, five
+/// versions, each checked byte for byte; the blob's size and the latencies (ms).
+fn weights_latencies(
+    weights_out: &WeightsSender,
+    weights_in: &WeightsReceiver,
+    logs: &dyn Fn() -> String,
+) -> (usize, Vec<f64>) {
     let blob =
         std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/oval_lockstep.safetensors"))
             .unwrap();
@@ -245,26 +211,14 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         assert!(got.2, "weights version {version} crossed byte for byte");
         weights_ms.push(got.1 as f64 * 1e-6);
     }
-    let line = format!(
-        "through two Zenoh tunnels on loopback: replay chunk ({} B) {}; weights ({} B) {}\n",
-        size_of::<ReplayChunk>(),
-        pct(replay_ms),
-        blob.len(),
-        pct(weights_ms)
-    );
-    print!("{line}");
-    let _ = std::io::stdout().flush();
-    drop((
-        replay_out,
-        weights_in,
-        replay_in,
-        weights_out,
-        robot_node,
-        trainer_node,
-    ));
-    // The stack across the tunnels: simulator and predictor in the robot's domain, the trainer
-    // (resuming the committed checkpoint, publishing every 10 updates) in its own.
-    let run = dir.path().join("stack");
+    (blob.len(), weights_ms)
+}
+
+/// The stack across the tunnels: simulator and predictor in the robot's domain, the trainer
+/// (resuming the committed checkpoint, publishing every 10 updates) in its own. Every replay
+/// chunk crosses, the trainer learns from them and its weights come back.
+fn stack_across(dir: &Path, robot: &str, trainer: &str, logs: &dyn Fn() -> String) {
+    let run = dir.join("stack");
     let ck = run.join("ck");
     std::fs::create_dir_all(&ck).unwrap();
     std::fs::copy(
@@ -281,7 +235,7 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         ),
     )
     .unwrap();
-    let [robot_run, trainer_run] = [&robot, &trainer].map(|ns| Run {
+    let [robot_run, trainer_run] = [robot, trainer].map(|ns| Run {
         config: Some(config.clone()),
         ..run_in(ns, &run)
     });
@@ -334,6 +288,76 @@ fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnel
         "weights it learnt came back: {pr:?}\n{}",
         logs()
     );
+}
+
+#[test]
+fn replay_crosses_to_a_trainer_domain_and_weights_come_back_through_zenoh_tunnels() {
+    let dir = tempfile::tempdir().unwrap();
+    let (robot, trainer) = (unique_namespace("tnr"), unique_namespace("tnt"));
+    let port = free_port();
+    // The robot's tunnel listens, the trainer host's connects; each wakes on its own outgoing
+    // topic's events and on data from the peer (--reactive), and polls for discovery.
+    let a = tunnel(
+        &dir.path().join("robot"),
+        &robot,
+        &zenoh_config(Some(port), None),
+        names::REPLAY,
+    );
+    let b = tunnel(
+        &dir.path().join("trainer"),
+        &trainer,
+        &zenoh_config(None, Some(port)),
+        names::WEIGHTS,
+    );
+    let logs = || {
+        [&a.1, &b.1]
+            .iter()
+            .map(|p| std::fs::read_to_string(p).unwrap_or_default())
+            .collect::<Vec<_>>()
+            .join("\n---\n")
+    };
+
+    let robot_node = create_node(
+        &IpcConfig {
+            namespace: robot.clone(),
+        },
+        "robot",
+    )
+    .unwrap();
+    let trainer_node = create_node(
+        &IpcConfig {
+            namespace: trainer.clone(),
+        },
+        "trainer-host",
+    )
+    .unwrap();
+    let replay_out =
+        Sender::<ReplayChunk>::open(&robot_node, names::REPLAY, TopicShape::REPLAY).unwrap();
+    let weights_in = WeightsReceiver::open(&robot_node).unwrap();
+    let replay_in =
+        Receiver::<ReplayChunk>::open(&trainer_node, names::REPLAY, TopicShape::REPLAY).unwrap();
+    let weights_out = WeightsSender::open(&trainer_node).unwrap();
+
+    let replay_ms = replay_latencies(&replay_out, &replay_in, &logs);
+    let (blob_len, weights_ms) = weights_latencies(&weights_out, &weights_in, &logs);
+    let line = format!(
+        "through two Zenoh tunnels on loopback: replay chunk ({} B) {}; weights ({} B) {}\n",
+        size_of::<ReplayChunk>(),
+        pct(replay_ms),
+        blob_len,
+        pct(weights_ms)
+    );
+    print!("{line}");
+    let _ = std::io::stdout().flush();
+    drop((
+        replay_out,
+        weights_in,
+        replay_in,
+        weights_out,
+        robot_node,
+        trainer_node,
+    ));
+    stack_across(dir.path(), &robot, &trainer, &logs);
     drop((a, b));
     remove_namespace_files(&robot);
     remove_namespace_files(&trainer);
