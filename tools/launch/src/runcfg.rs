@@ -120,6 +120,53 @@ pub fn check(file: &ConfigFile) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A run's inputs once its config is in the run folder (`effective_config`): the config read
+/// back, the track (checked), the starting checkpoint probed on it, the mode the simulator runs
+/// in and the stack for that mode. `mta up` and `mta soak` prepare a run through here.
+pub struct Prepared {
+    pub file: ConfigFile,
+    pub track: PathBuf,
+    /// `start.safetensors` in the run folder, for the predictor (and the trainer's latest
+    /// checkpoint when it learns).
+    pub start_ck: Option<PathBuf>,
+    pub realtime: bool,
+    pub stack: StackConfig,
+}
+
+pub fn prepare(
+    config: &Path,
+    ck_dir: &Path,
+    out: &Path,
+    track: Option<&Path>,
+    checkpoint: Option<&Path>,
+    learning: bool,
+) -> anyhow::Result<Prepared> {
+    let file = ConfigFile::load(Some(config))?;
+    let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
+    let track = track.map_or(scene.track, Path::to_path_buf);
+    mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;
+    let start_ck = match checkpoint {
+        Some(ck) => {
+            let probed = probed_copy(ck, &file, &track, out)?;
+            if learning {
+                start_trainer_from(ck, &probed, ck_dir)?;
+            }
+            Some(probed)
+        }
+        None => None,
+    };
+    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
+    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
+    let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
+    Ok(Prepared {
+        file,
+        track,
+        start_ck,
+        realtime,
+        stack,
+    })
+}
+
 /// Lets the trainer resume from `original` (its checked copy `probed`): the copy becomes the
 /// latest checkpoint in `ck_dir`, and Adam's moments saved beside the original, if any, come
 /// with it (a resumed learner that restarts its moments from zero takes oversized first steps).

@@ -106,29 +106,31 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         let _ = std::fs::remove_dir(&out);
     }
     let (config, ck_dir) = checked?;
-    let file = ConfigFile::load(Some(&config))?;
-    let mut ipc: IpcConfig = file.section("ipc")?;
+    let mut ipc: IpcConfig = ConfigFile::load(Some(&config))?.section("ipc")?;
     if let Some(ns) = &args.namespace {
         ipc.namespace = ns.clone();
     }
     refuse_live_namespace(&ipc, &out, reserved)?;
-    let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
-    let track = args.track.clone().unwrap_or(scene.track);
-    mtanet_scenes::Track::load(&track).with_context(|| format!("the track {}", track.display()))?;
-    let start_ck = match &args.checkpoint {
-        Some(ck) => Some(runcfg::probed_copy(ck, &file, &track, &out)?),
-        None => None,
-    };
-    if let (Some(ck), Some(original), false) = (&start_ck, &args.checkpoint, args.no_learning) {
-        runcfg::start_trainer_from(original, ck, &ck_dir)?;
-    }
-    let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
-    let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
+    let learning = !(args.no_learning || args.rule);
+    let runcfg::Prepared {
+        file,
+        track,
+        start_ck,
+        realtime,
+        stack,
+    } = runcfg::prepare(
+        &config,
+        &ck_dir,
+        &out,
+        args.track.as_deref(),
+        args.checkpoint.as_deref(),
+        learning,
+    )?;
     let info = RunInfo {
         track: track.clone(),
         // The mode the simulator runs in (the flag, else the config's, else real time).
         lockstep: !realtime,
-        learning: !(args.no_learning || args.rule),
+        learning,
         checkpoint: args.checkpoint.clone(),
         config: args.config.clone(),
     };
@@ -139,7 +141,6 @@ pub fn run(args: UpArgs) -> anyhow::Result<()> {
         config.display()
     );
 
-    let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
     let mut sup = Supervisor::new(&out)?;
     let run = plan_run(&args, &config, &ipc, &out, &track, start_ck);
     start_in_order(&mut sup, &stack, &run)?;

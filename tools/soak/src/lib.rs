@@ -17,7 +17,6 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
-use mtanet_ipc::config::ConfigFile;
 use mtanet_ipc::stack::StackConfig;
 use mtanet_launch::runcfg;
 use mtanet_launch::stack::{leftover_shm, nodes, remove_namespace_files, unique_namespace};
@@ -175,20 +174,19 @@ impl Prepared {
         let out = &args.out;
         let (config, ck_dir) =
             runcfg::effective_config(args.config.as_deref(), Some(mode), false, out)?;
-        let file = ConfigFile::load(Some(&config))?;
-        let scene: mtanet_scenes::SceneConfig = file.section("simulator.scene")?;
-        let track = args.track.clone().unwrap_or(scene.track);
-        let start_ck = match &args.checkpoint {
-            Some(ck) => {
-                let probed = runcfg::probed_copy(ck, &file, &track, out)?;
-                runcfg::start_trainer_from(ck, &probed, &ck_dir)?;
-                Some(probed)
-            }
-            None => None,
-        };
-        let sim: mtanet_simulator::config::SimulatorConfig = file.section("simulator")?;
-        let realtime = sim.mode == mtanet_simulator::config::Mode::Realtime;
-        let stack = file.section::<StackConfig>("stack")?.for_mode(realtime);
+        let runcfg::Prepared {
+            track,
+            start_ck,
+            stack,
+            ..
+        } = runcfg::prepare(
+            &config,
+            &ck_dir,
+            out,
+            args.track.as_deref(),
+            args.checkpoint.as_deref(),
+            true,
+        )?;
         Ok(Self {
             config,
             track,
