@@ -62,13 +62,9 @@ impl ReflexConfig {
         }
     }
 
-    /// `planned` with the reflex's turn added (no ramp: see [`Reflex`]).
-    pub fn apply(&self, planned: Wheels, line: [bool; 3], last_side: f32) -> Wheels {
-        self.apply_with(planned, line, last_side, 0.0)
-    }
-
-    /// `planned` with the reflex's turn and `extra` (toward the same side) added.
-    fn apply_with(&self, planned: Wheels, line: [bool; 3], last_side: f32, extra: f32) -> Wheels {
+    /// `planned` with the reflex's turn and `extra` (the ramp's, toward the same side) added;
+    /// [`Reflex`] keeps the ramp.
+    pub fn apply(&self, planned: Wheels, line: [bool; 3], last_side: f32, extra: f32) -> Wheels {
         let d = Drive::from_wheels(planned);
         let slipping =
             slipping(line) && (line != [false; 3] || self.search > 0.0 && last_side != 0.0);
@@ -129,7 +125,7 @@ impl Reflex {
             self.held_s += self.period_s;
         }
         let extra = (self.cfg.ramp * self.held_s).min(self.cfg.ramp_max);
-        self.cfg.apply_with(planned, line, last_side, extra)
+        self.cfg.apply(planned, line, last_side, extra)
     }
 }
 
@@ -141,22 +137,22 @@ mod tests {
     fn turns_toward_the_side_that_sees_the_line_and_slows_when_it_slips_away() {
         let r = ReflexConfig::default();
         let fast = Drive::new(10.0, 0.0).wheels();
-        let centred = Drive::from_wheels(r.apply(fast, [false, true, false], 0.0));
+        let centred = Drive::from_wheels(r.apply(fast, [false, true, false], 0.0, 0.0));
         assert_eq!(
             (centred.speed, centred.turn),
             (10.0, 0.0),
             "preferred reading"
         );
-        let left = Drive::from_wheels(r.apply(fast, [true, true, false], 0.0));
+        let left = Drive::from_wheels(r.apply(fast, [true, true, false], 0.0, 0.0));
         assert!((left.turn - r.gentle).abs() < 1e-5 && left.speed == 10.0);
-        let slipping = Drive::from_wheels(r.apply(fast, [false, false, true], 0.0));
+        let slipping = Drive::from_wheels(r.apply(fast, [false, false, true], 0.0, 0.0));
         assert!((slipping.turn + r.strong).abs() < 1e-5, "{slipping:?}");
         assert!(
             (slipping.speed - r.strong_max_speed).abs() < 1e-5,
             "{slipping:?}"
         );
         let slow = Drive::new(3.0, 0.0).wheels();
-        let kept = Drive::from_wheels(r.apply(slow, [true, false, false], 0.0));
+        let kept = Drive::from_wheels(r.apply(slow, [true, false, false], 0.0, 0.0));
         assert!(
             (kept.speed - 3.0).abs() < 1e-5,
             "a slower plan is not sped up"
@@ -230,12 +226,12 @@ mod tests {
             ..ReflexConfig::default()
         };
         let fast = Drive::new(10.0, -2.0).wheels();
-        let left = Drive::from_wheels(r.apply(fast, [false; 3], 1.0));
+        let left = Drive::from_wheels(r.apply(fast, [false; 3], 1.0, 0.0));
         assert!((left.turn - 4.0).abs() < 1e-5, "{left:?}");
         assert!((left.speed - r.strong_max_speed).abs() < 1e-5, "{left:?}");
-        let right = Drive::from_wheels(r.apply(fast, [false; 3], -1.0));
+        let right = Drive::from_wheels(r.apply(fast, [false; 3], -1.0, 0.0));
         assert!((right.turn + 8.0).abs() < 1e-5, "{right:?}");
-        let unknown = Drive::from_wheels(r.apply(fast, [false; 3], 0.0));
+        let unknown = Drive::from_wheels(r.apply(fast, [false; 3], 0.0, 0.0));
         assert_eq!(
             (unknown.speed, unknown.turn),
             (10.0, -2.0),
@@ -245,7 +241,7 @@ mod tests {
             search: 0.0,
             ..ReflexConfig::default()
         };
-        let off = Drive::from_wheels(none.apply(fast, [false; 3], 1.0));
+        let off = Drive::from_wheels(none.apply(fast, [false; 3], 1.0, 0.0));
         assert_eq!((off.speed, off.turn), (10.0, -2.0), "search 0: the plan");
     }
 }
