@@ -138,6 +138,12 @@ fn the_smoke_experiment_runs_every_cell_agrees_with_its_run_folders_and_resumes(
             "{variant} ({phase}) laps {laps} not in plots/laps.csv:\n{points}"
         );
         if phase == "learn" {
+            // Publishing every 2 updates, the trainer can send several versions during one
+            // plan; each must reach the predictor, or the run does not replay (the last check).
+            let p: mtanet_summaries::predictor::Summary =
+                mtanet_summaries::files::read_json(&run.join("mta-predictor.json")).unwrap();
+            assert_eq!(p.weights_lost, 0, "{}: {p:?}", run.display());
+            assert!(p.weights_received > 100, "{}: {p:?}", run.display());
             // The checkpoint's analysis: its figures in the row are those of analysis.json.
             let path = out.join(variant).join("0/analysis/analysis.json");
             let a: mtanet_offline::analyze::Analysis =

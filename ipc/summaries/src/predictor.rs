@@ -18,6 +18,10 @@ pub struct Summary {
     /// Observations whose step did not follow the previous one (lost or reordered).
     pub step_gaps: u64,
     pub weights_received: u64,
+    /// Lockstep weights overwritten on the topic before this process took them (each should
+    /// have driven from its own step; 0 in a run that replays).
+    #[serde(default)]
+    pub weights_lost: u64,
     /// Weights put in use.
     #[serde(default)]
     pub weights_installed: u64,

@@ -21,6 +21,11 @@ type Factory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
 
 /// First allocation per sample; large enough for the default model's checkpoint.
 const INITIAL_MAX_BYTES: usize = 4 << 20;
+/// Checkpoints a subscriber holds before the oldest is overwritten. In lockstep every version
+/// drives from its own step, so the predictor must take each one: the trainer can publish a few
+/// while the predictor waits for one plan (publishing every 2 updates, 3-4 were seen). A version
+/// still overwritten is counted (`weights_lost`), not silently skipped.
+pub const SUBSCRIBER_BUFFER: usize = 8;
 
 fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
     let name = service_name(names::WEIGHTS)?;
@@ -32,8 +37,9 @@ fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
                 .user_header::<WeightsHeader>()
                 .enable_safe_overflow(true)
                 .history_size(1)
-                .subscriber_max_buffer_size(1)
-                .subscriber_max_borrowed_samples(1)
+                .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+                // `latest` holds the newer of two while it drops the older.
+                .subscriber_max_borrowed_samples(2)
                 .max_subscribers(4)
                 // The trainer, plus a Zenoh tunnel's bridge when the trainer is on another host.
                 .max_publishers(2)
@@ -165,6 +171,22 @@ impl WeightsReceiver {
 
     pub fn listener(&self) -> &Listener<ipc::Service> {
         &self.listener
+    }
+
+    /// Every pending checkpoint, oldest first, each handed to `f` in place (no copy of the blob)
+    /// and released before the next is taken. Returns what `f` returned for each.
+    pub fn each<R>(
+        &self,
+        mut f: impl FnMut(&WeightsHeader, &[u8]) -> R,
+    ) -> Result<Vec<R>, PortError> {
+        let _ = self.listener.try_wait(|_| {});
+        let mut out = Vec::new();
+        while let Some(s) = self.subscriber.receive().map_err(|e| err("receive", e))? {
+            let header = *s.user_header();
+            let len = (header.len as usize).min(s.payload().len());
+            out.push(f(&header, &s.payload()[..len]));
+        }
+        Ok(out)
     }
 
     /// The newest pending checkpoint, handed to `f` in place (no copy of the blob); older pending

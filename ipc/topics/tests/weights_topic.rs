@@ -43,3 +43,41 @@ fn a_late_subscriber_gets_the_newest_weights() {
     // iceoryx2 keeps a node counter per namespace by design; this namespace is used once.
     remove_namespace_files(&ipc.namespace);
 }
+
+/// Lockstep learning drives each version from its own step: a predictor busy with one plan
+/// while the trainer publishes several must still get every one, oldest first.
+#[test]
+fn checkpoints_published_while_the_predictor_is_busy_all_arrive_in_order() {
+    let ipc = IpcConfig {
+        namespace: format!("wb{}", std::process::id()),
+    };
+    {
+        let trainer = create_node(&ipc, "trainer").unwrap();
+        let sender = WeightsSender::open(&trainer).unwrap();
+        let predictor = create_node(&ipc, "predictor").unwrap();
+        let receiver = WeightsReceiver::open(&predictor).unwrap();
+        let n = 5;
+        assert!(mtanet_ipc::weights_topic::SUBSCRIBER_BUFFER as u64 >= n);
+        for version in 1..=n {
+            let header = WeightsHeader {
+                version,
+                ..Default::default()
+            };
+            sender.send(header, &vec![version as u8; 1000]).unwrap();
+        }
+        let got = receiver.each(|h, bytes| (h.version, bytes[999])).unwrap();
+        let want: Vec<(u64, u8)> = (1..=n).map(|v| (v, v as u8)).collect();
+        assert_eq!(got, want, "every checkpoint, oldest first, whole");
+        assert!(receiver.each(|h, _| h.version).unwrap().is_empty());
+        // The newest of several, for a reader that wants only that.
+        for version in [n + 1, n + 2] {
+            let header = WeightsHeader {
+                version,
+                ..Default::default()
+            };
+            sender.send(header, &[0u8; 10]).unwrap();
+        }
+        assert_eq!(receiver.latest(|h, _| h.version).unwrap(), Some(n + 2));
+    }
+    remove_namespace_files(&ipc.namespace);
+}

@@ -16,6 +16,8 @@ pub struct Intake {
     in_flight: Vec<(u64, u64)>,
     /// Decoded, waiting for their install step.
     waiting: Vec<Decoded>,
+    /// The last version received with an install step: the next one must follow it.
+    last_scheduled: Option<u64>,
 }
 
 impl Intake {
@@ -24,20 +26,26 @@ impl Intake {
             loader: Loader::spawn(loader_nice)?,
             in_flight: Vec::new(),
             waiting: Vec::new(),
+            last_scheduled: None,
         })
     }
 
-    /// Hands the newest checkpoint on the weights topic to the loader (decoding it here would
-    /// stall the control loop for several ms).
+    /// Hands every checkpoint on the weights topic, oldest first, to the loader (decoding it here
+    /// would stall the control loop for several ms). Each lockstep version drives from its own
+    /// step, so none may be skipped; one overwritten before it was taken is counted and logged.
     pub fn receive(&mut self, ports: &Ports, summary: &mut Summary) -> anyhow::Result<()> {
         let loader = &self.loader;
-        let got = ports.weights.latest(|h, bytes| {
+        let got = ports.weights.each(|h, bytes| {
             loader
                 .submit(bytes, h.version, h.probe, h.install_step)
                 .map(|()| (h.version, h.install_step))
         })?;
-        if let Some(r) = got {
-            self.in_flight.push(r?);
+        for r in got {
+            let (version, install_step) = r?;
+            if install_step != 0 {
+                follows(&mut self.last_scheduled, version, summary);
+            }
+            self.in_flight.push((version, install_step));
             summary.weights_received += 1;
         }
         Ok(())
@@ -76,6 +84,22 @@ impl Intake {
     }
 }
 
+/// Counts the lockstep versions between the last one taken and `version` that never arrived.
+fn follows(last: &mut Option<u64>, version: u64, summary: &mut Summary) {
+    if let Some(l) = *last
+        && version > l + 1
+    {
+        summary.weights_lost += version - l - 1;
+        tracing::error!(
+            "lockstep weights {}..={} were overwritten before this predictor took them: \
+             this run will not replay bit for bit",
+            l + 1,
+            version - 1
+        );
+    }
+    *last = Some(version);
+}
+
 /// A copy in place between two steps (or a refusal that keeps the model in hand).
 fn install(
     version: u64,
@@ -112,5 +136,25 @@ fn install(
                 "rejected weights, keeping the previous model: {e:#}"
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lockstep_version_that_never_arrived_is_counted() {
+        let (mut last, mut summary) = (None, Summary::default());
+        for v in [1, 2, 3] {
+            follows(&mut last, v, &mut summary);
+        }
+        assert_eq!(summary.weights_lost, 0);
+        follows(&mut last, 6, &mut summary);
+        assert_eq!(summary.weights_lost, 2, "versions 4 and 5");
+        // A restarted trainer counts from its checkpoint again: not a loss.
+        follows(&mut last, 2, &mut summary);
+        follows(&mut last, 3, &mut summary);
+        assert_eq!(summary.weights_lost, 2);
     }
 }
