@@ -38,7 +38,7 @@ fn open(node: &Node<ipc::Service>) -> Result<Factory, PortError> {
                 .enable_safe_overflow(true)
                 .history_size(1)
                 .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
-                // `latest` holds the newer of two while it drops the older.
+                // `latest` and `pending` hold the newer of two while they drop the older.
                 .subscriber_max_borrowed_samples(2)
                 .max_subscribers(4)
                 // The trainer, plus a Zenoh tunnel's bridge when the trainer is on another host.
@@ -173,19 +173,25 @@ impl WeightsReceiver {
         &self.listener
     }
 
-    /// Every pending checkpoint, oldest first, each handed to `f` in place (no copy of the blob)
-    /// and released before the next is taken. Returns what `f` returned for each.
-    pub fn each<R>(
+    /// The pending checkpoints, oldest first, each handed to `f` in place (no copy of the blob):
+    /// every one that carries an install step (lockstep: each drives from its own step) and the
+    /// newest of the others (real time installs on arrival, so an older one would be superseded
+    /// before it drove). Returns what `f` returned for each.
+    pub fn pending<R>(
         &self,
         mut f: impl FnMut(&WeightsHeader, &[u8]) -> R,
     ) -> Result<Vec<R>, PortError> {
         let _ = self.listener.try_wait(|_| {});
         let mut out = Vec::new();
+        let mut held: Option<Sample> = None;
         while let Some(s) = self.subscriber.receive().map_err(|e| err("receive", e))? {
-            let header = *s.user_header();
-            let len = (header.len as usize).min(s.payload().len());
-            out.push(f(&header, &s.payload()[..len]));
+            if let Some(h) = held.replace(s)
+                && h.user_header().install_step != 0
+            {
+                out.push(hand(&h, &mut f));
+            }
         }
+        out.extend(held.map(|h| hand(&h, &mut f)));
         Ok(out)
     }
 
@@ -200,10 +206,15 @@ impl WeightsReceiver {
         while let Some(sample) = self.subscriber.receive().map_err(|e| err("receive", e))? {
             newest = Some(sample);
         }
-        Ok(newest.map(|s| {
-            let header = *s.user_header();
-            let len = (header.len as usize).min(s.payload().len());
-            f(&header, &s.payload()[..len])
-        }))
+        Ok(newest.map(|s| hand(&s, f)))
     }
+}
+
+type Sample = iceoryx2::sample::Sample<ipc::Service, [u8], WeightsHeader>;
+
+/// A sample's header and the checkpoint's bytes (the slice may be longer than the blob).
+fn hand<R>(s: &Sample, f: impl FnOnce(&WeightsHeader, &[u8]) -> R) -> R {
+    let header = *s.user_header();
+    let len = (header.len as usize).min(s.payload().len());
+    f(&header, &s.payload()[..len])
 }

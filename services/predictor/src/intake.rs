@@ -30,12 +30,13 @@ impl Intake {
         })
     }
 
-    /// Hands every checkpoint on the weights topic, oldest first, to the loader (decoding it here
-    /// would stall the control loop for several ms). Each lockstep version drives from its own
-    /// step, so none may be skipped; one overwritten before it was taken is counted and logged.
+    /// Hands the pending checkpoints, oldest first, to the loader (decoding them here would stall
+    /// the control loop for several ms): every lockstep version, since each drives from its own
+    /// step (one overwritten before it was taken is counted and logged), and in real time the
+    /// newest.
     pub fn receive(&mut self, ports: &Ports, summary: &mut Summary) -> anyhow::Result<()> {
         let loader = &self.loader;
-        let got = ports.weights.each(|h, bytes| {
+        let got = ports.weights.pending(|h, bytes| {
             loader
                 .submit(bytes, h.version, h.probe, h.install_step)
                 .map(|()| (h.version, h.install_step))
